@@ -1,0 +1,7 @@
+//! # quarry-eval
+//!
+//! Placeholder crate: its contents land with their issue.
+//!
+//! ```
+//! assert_eq!(1 + 1, 2);
+//! ```
