@@ -1,7 +1,15 @@
 //! # quarry-vision
 //!
-//! Placeholder crate: its contents land with their issue.
+//! Pixel-level building blocks for vision trackers.
 //!
 //! ```
-//! assert_eq!(1 + 1, 2);
+//! use quarry_core::Plane;
+//! let p = Plane::new(4, 3, 0u8);
+//! assert_eq!(p.len(), 12);
 //! ```
+
+mod error;
+#[cfg(feature = "io")]
+pub mod io;
+
+pub use error::VisionError;
