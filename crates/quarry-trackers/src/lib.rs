@@ -1,7 +1,13 @@
 //! # quarry-trackers
 //!
-//! Placeholder crate: its contents land with their issue.
+//! The trackers of the four papers, each a module that assembles the building-block crates.
 //!
 //! ```
-//! assert_eq!(1 + 1, 2);
+//! use quarry_trackers::TrackerError;
+//! let e = TrackerError::Config("particles must be > 0".into());
+//! assert!(e.to_string().contains("particles"));
 //! ```
+
+mod error;
+
+pub use error::TrackerError;
