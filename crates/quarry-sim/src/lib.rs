@@ -13,5 +13,6 @@
 //! ```
 
 mod error;
+pub mod slamot;
 
 pub use error::SimError;
