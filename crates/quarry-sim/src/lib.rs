@@ -13,6 +13,7 @@
 //! ```
 
 mod error;
+pub mod mrclam;
 pub mod lidar_room;
 pub mod slamot;
 
