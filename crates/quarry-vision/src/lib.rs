@@ -8,8 +8,10 @@
 //! assert_eq!(p.len(), 12);
 //! ```
 
+pub mod blur;
 mod error;
 #[cfg(feature = "io")]
 pub mod io;
 
+pub use blur::{Border, GaussianKernel, gaussian_blur_f32, gaussian_blur_f64};
 pub use error::VisionError;

@@ -1,0 +1,513 @@
+//! Separable Gaussian blur with OpenCV's kernel-size rule and border modes.
+//!
+//! [`gaussian_blur_f64`] and [`gaussian_blur_f32`] agree with
+//! `cv2.GaussianBlur(img, (0, 0), sigma)` on `CV_64F` / `CV_32F` images (default border
+//! `BORDER_REFLECT_101`): the kernel has `round(8σ + 1) | 1` taps (radius ≈ 4σ, the rule OpenCV
+//! uses for float images), weights `exp(−j²/2σ²)` normalised to sum 1, the horizontal pass runs
+//! first and the vertical one second. Unlike `imageproc::filter::gaussian_blur_f32` (radius ⌈2σ⌉)
+//! nothing of the Gaussian's mass beyond 4σ is lost, which matters for the ramped segmentation
+//! image of spec 004 §2.3.
+//!
+//! Implementation: the symmetric kernel is folded (`k_j (a_{x−j} + a_{x+j})`), each pass walks
+//! contiguous rows with the taps in the outer loop and the pixels in the inner loop, so the inner
+//! loops auto-vectorise and the vertical pass reads whole rows (cache-friendly). With the
+//! `parallel` feature both passes are split over rows with rayon; every output value is computed
+//! by the same sequence of floating-point operations whatever the thread count, so the result is
+//! bit-identical to the single-threaded one.
+
+use crate::VisionError;
+use quarry_core::Plane;
+
+/// Border extrapolation (OpenCV's names).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum Border {
+    /// `gfedcb|abcdefgh|gfedcba` — OpenCV's default `BORDER_REFLECT_101`.
+    #[default]
+    Reflect101,
+    /// `fedcba|abcdefgh|hgfedcb` — `BORDER_REFLECT`.
+    Reflect,
+    /// `aaaaaa|abcdefgh|hhhhhhh` — `BORDER_REPLICATE`.
+    Replicate,
+}
+
+impl Border {
+    /// Maps an out-of-range coordinate `p` into `0..len` (OpenCV's `borderInterpolate`, including
+    /// repeated reflection when the kernel is wider than the image). `len` must be ≥ 1.
+    pub fn interpolate(self, p: isize, len: usize) -> usize {
+        let n = len as isize;
+        if (0..n).contains(&p) {
+            return p as usize;
+        }
+        match self {
+            Border::Replicate => {
+                if p < 0 {
+                    0
+                } else {
+                    len - 1
+                }
+            }
+            Border::Reflect | Border::Reflect101 => {
+                if len == 1 {
+                    return 0;
+                }
+                let delta = isize::from(self == Border::Reflect101);
+                let mut p = p;
+                // Reflect back and forth until inside (terminates: every step moves p towards
+                // the interval, at least by one when delta = 0 and len >= 2).
+                while !(0..n).contains(&p) {
+                    if p < 0 {
+                        p = -p - 1 + delta;
+                    } else {
+                        p = n - 1 - (p - n) - delta;
+                    }
+                }
+                p as usize
+            }
+        }
+    }
+}
+
+/// A normalised 1-D Gaussian kernel of odd size.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussianKernel {
+    /// Standard deviation in pixels.
+    pub sigma: f64,
+    /// The weights `k_{−r} … k_r` (length `2r + 1`), summing to 1.
+    pub weights: Vec<f64>,
+}
+
+impl GaussianKernel {
+    /// Largest supported kernel size (taps); larger sigmas are rejected rather than allocating
+    /// unbounded buffers.
+    pub const MAX_SIZE: usize = 1 << 16;
+
+    /// OpenCV's kernel size for float images: `round(8σ + 1) | 1` (radius ≈ 4σ).
+    pub fn opencv_size(sigma: f64) -> Result<usize, VisionError> {
+        check_sigma(sigma)?;
+        let s = (sigma * 8.0 + 1.0).round();
+        if s > Self::MAX_SIZE as f64 {
+            return Err(VisionError::InvalidSigma(sigma));
+        }
+        Ok((s as usize) | 1)
+    }
+
+    /// The kernel OpenCV uses for `GaussianBlur(.., (0, 0), sigma)` on float images.
+    pub fn new(sigma: f64) -> Result<Self, VisionError> {
+        let size = Self::opencv_size(sigma)?;
+        Self::with_size(sigma, size)
+    }
+
+    /// A kernel with an explicit odd `size` (as `cv2.getGaussianKernel(size, sigma)`).
+    pub fn with_size(sigma: f64, size: usize) -> Result<Self, VisionError> {
+        check_sigma(sigma)?;
+        if size.is_multiple_of(2) || size > Self::MAX_SIZE {
+            return Err(quarry_core::CoreError::invalid(
+                "kernel size",
+                format!("must be odd and at most {}, got {size}", Self::MAX_SIZE),
+            )
+            .into());
+        }
+        let r = (size / 2) as f64;
+        let scale = -0.5 / (sigma * sigma);
+        let mut weights: Vec<f64> = (0..size)
+            .map(|i| {
+                let x = i as f64 - r;
+                (scale * x * x).exp()
+            })
+            .collect();
+        let sum: f64 = weights.iter().sum();
+        for w in &mut weights {
+            *w /= sum;
+        }
+        Ok(Self { sigma, weights })
+    }
+
+    /// Radius `r` (the kernel has `2r + 1` taps).
+    pub fn radius(&self) -> usize {
+        self.weights.len() / 2
+    }
+
+    /// Number of taps.
+    pub fn size(&self) -> usize {
+        self.weights.len()
+    }
+}
+
+fn check_sigma(sigma: f64) -> Result<(), VisionError> {
+    if sigma.is_finite() && sigma > 0.0 {
+        Ok(())
+    } else {
+        Err(VisionError::InvalidSigma(sigma))
+    }
+}
+
+/// The floating-point sample types the blur runs on.
+pub trait BlurSample:
+    Copy
+    + Send
+    + Sync
+    + Default
+    + std::ops::Add<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::AddAssign
+    + 'static
+    + sealed::Sealed
+{
+    /// Conversion of a kernel weight.
+    fn from_f64(v: f64) -> Self;
+    /// True when finite.
+    fn is_finite_sample(self) -> bool;
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+impl BlurSample for f32 {
+    #[inline]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    #[inline]
+    fn is_finite_sample(self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl BlurSample for f64 {
+    #[inline]
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    #[inline]
+    fn is_finite_sample(self) -> bool {
+        self.is_finite()
+    }
+}
+
+/// Blurs an f64 plane with σ = `sigma` (OpenCV kernel size, reflect-101 border).
+///
+/// Errors: [`VisionError::InvalidSigma`] unless σ is finite and > 0, [`VisionError::EmptyImage`]
+/// for a plane without pixels, [`VisionError::NonFinite`] for NaN/infinite pixels.
+pub fn gaussian_blur_f64(src: &Plane<f64>, sigma: f64) -> Result<Plane<f64>, VisionError> {
+    let k = GaussianKernel::new(sigma)?;
+    gaussian_blur_with(src, &k, Border::Reflect101)
+}
+
+/// Blurs an f32 plane with σ = `sigma` (OpenCV kernel size, reflect-101 border); the kernel is
+/// rounded to f32 and the sums run in f32, as OpenCV does for `CV_32F`.
+///
+/// Errors as [`gaussian_blur_f64`].
+pub fn gaussian_blur_f32(src: &Plane<f32>, sigma: f64) -> Result<Plane<f32>, VisionError> {
+    let k = GaussianKernel::new(sigma)?;
+    gaussian_blur_with(src, &k, Border::Reflect101)
+}
+
+/// Blurs with an explicit kernel (any odd size) and border mode.
+pub fn gaussian_blur_with<T: BlurSample>(
+    src: &Plane<T>,
+    kernel: &GaussianKernel,
+    border: Border,
+) -> Result<Plane<T>, VisionError> {
+    check_plane(src, "gaussian blur")?;
+    let (w, h) = (src.width as usize, src.height as usize);
+    let r = kernel.radius();
+    let k: Vec<T> = kernel.weights[r..]
+        .iter()
+        .map(|&v| T::from_f64(v))
+        .collect();
+    let mut tmp = vec![T::default(); w * h];
+    horizontal_pass(&src.data, &mut tmp, w, &k, border);
+    let mut out = vec![T::default(); w * h];
+    vertical_pass(&tmp, &mut out, w, h, &k, border);
+    Ok(Plane {
+        width: src.width,
+        height: src.height,
+        data: out,
+    })
+}
+
+pub(crate) fn check_plane<T: BlurSample>(
+    src: &Plane<T>,
+    what: &'static str,
+) -> Result<(), VisionError> {
+    if src.width == 0 || src.height == 0 || src.data.is_empty() {
+        return Err(VisionError::EmptyImage {
+            what,
+            width: src.width,
+            height: src.height,
+            min: 1,
+        });
+    }
+    if src.data.len() != src.width as usize * src.height as usize {
+        return Err(quarry_core::CoreError::DimensionMismatch {
+            what: "plane data length (width * height)",
+            expected: src.width as usize * src.height as usize,
+            got: src.data.len(),
+        }
+        .into());
+    }
+    if !src.data.iter().all(|v| v.is_finite_sample()) {
+        return Err(VisionError::NonFinite(what));
+    }
+    Ok(())
+}
+
+/// Rows per parallel task (large enough to amortise scheduling, small enough to balance).
+#[cfg(feature = "parallel")]
+const ROWS_PER_TASK: usize = 16;
+
+fn horizontal_pass<T: BlurSample>(src: &[T], dst: &mut [T], w: usize, k: &[T], border: Border) {
+    let r = k.len() - 1;
+    let row_fn = |(src_row, dst_row): (&[T], &mut [T]), pad: &mut Vec<T>| {
+        pad.clear();
+        pad.extend((0..w + 2 * r).map(|i| src_row[border.interpolate(i as isize - r as isize, w)]));
+        blur_row(pad, dst_row, k);
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        src.par_chunks(w * ROWS_PER_TASK)
+            .zip(dst.par_chunks_mut(w * ROWS_PER_TASK))
+            .for_each(|(s, d)| {
+                let mut pad = Vec::with_capacity(w + 2 * r);
+                for pair in s.chunks(w).zip(d.chunks_mut(w)) {
+                    row_fn(pair, &mut pad);
+                }
+            });
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut pad = Vec::with_capacity(w + 2 * r);
+        for pair in src.chunks(w).zip(dst.chunks_mut(w)) {
+            row_fn(pair, &mut pad);
+        }
+    }
+}
+
+/// `out[x] = k0 pad[x + r] + Σ_j k_j (pad[x + r − j] + pad[x + r + j])`, taps outer, pixels inner.
+#[inline]
+fn blur_row<T: BlurSample>(pad: &[T], out: &mut [T], k: &[T]) {
+    let r = k.len() - 1;
+    let w = out.len();
+    let centre = &pad[r..r + w];
+    let k0 = k[0];
+    for (o, &c) in out.iter_mut().zip(centre) {
+        *o = k0 * c;
+    }
+    for (j, &kj) in k.iter().enumerate().skip(1) {
+        let left = &pad[r - j..r - j + w];
+        let right = &pad[r + j..r + j + w];
+        for ((o, &a), &b) in out.iter_mut().zip(left).zip(right) {
+            *o += kj * (a + b);
+        }
+    }
+}
+
+fn vertical_pass<T: BlurSample>(
+    src: &[T],
+    dst: &mut [T],
+    w: usize,
+    h: usize,
+    k: &[T],
+    border: Border,
+) {
+    let row = |y: isize| -> &[T] {
+        let yy = border.interpolate(y, h);
+        &src[yy * w..(yy + 1) * w]
+    };
+    let row_fn = |y: usize, out: &mut [T]| {
+        let yi = y as isize;
+        let k0 = k[0];
+        for (o, &c) in out.iter_mut().zip(row(yi)) {
+            *o = k0 * c;
+        }
+        for (j, &kj) in k.iter().enumerate().skip(1) {
+            let up = row(yi - j as isize);
+            let down = row(yi + j as isize);
+            for ((o, &a), &b) in out.iter_mut().zip(up).zip(down) {
+                *o += kj * (a + b);
+            }
+        }
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        dst.par_chunks_mut(w * ROWS_PER_TASK)
+            .enumerate()
+            .for_each(|(band, d)| {
+                for (i, out) in d.chunks_mut(w).enumerate() {
+                    row_fn(band * ROWS_PER_TASK + i, out);
+                }
+            });
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        for (y, out) in dst.chunks_mut(w).enumerate() {
+            row_fn(y, out);
+        }
+    }
+}
+
+/// Blurs a 1-D signal with `kernel` (used for the exact blur of the separable ramp).
+pub fn gaussian_blur_1d(
+    signal: &[f64],
+    kernel: &GaussianKernel,
+    border: Border,
+) -> Result<Vec<f64>, VisionError> {
+    if signal.is_empty() {
+        return Err(quarry_core::CoreError::Empty {
+            what: "1-D blur signal",
+        }
+        .into());
+    }
+    if !signal.iter().all(|v| v.is_finite()) {
+        return Err(VisionError::NonFinite("1-D blur signal"));
+    }
+    let n = signal.len();
+    let r = kernel.radius();
+    let k = &kernel.weights[r..];
+    let pad: Vec<f64> = (0..n + 2 * r)
+        .map(|i| signal[border.interpolate(i as isize - r as isize, n)])
+        .collect();
+    let mut out = vec![0.0; n];
+    blur_row(&pad, &mut out, k);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn opencv_sizes() {
+        assert_eq!(GaussianKernel::opencv_size(8.0).unwrap(), 65);
+        assert_eq!(GaussianKernel::opencv_size(5.0).unwrap(), 41);
+        assert_eq!(GaussianKernel::opencv_size(1.6).unwrap(), 15);
+        assert_eq!(GaussianKernel::opencv_size(0.5).unwrap(), 5);
+        assert!(GaussianKernel::opencv_size(0.0).is_err());
+        assert!(GaussianKernel::opencv_size(-1.0).is_err());
+        assert!(GaussianKernel::opencv_size(f64::NAN).is_err());
+        assert!(GaussianKernel::opencv_size(1e9).is_err());
+    }
+
+    #[test]
+    fn kernel_sums_to_one() {
+        for s in [0.3, 1.0, 1.6, 5.0, 8.0, 20.0] {
+            let k = GaussianKernel::new(s).unwrap();
+            let sum: f64 = k.weights.iter().sum();
+            assert!((sum - 1.0).abs() < 1e-12, "sigma {s}: {sum}");
+            // symmetric and peaked at the centre
+            let r = k.radius();
+            for j in 0..r {
+                assert_eq!(k.weights[j], k.weights[2 * r - j]);
+                assert!(k.weights[j] < k.weights[j + 1]);
+            }
+        }
+    }
+
+    #[test]
+    fn border_interpolation_matches_opencv() {
+        // cv2.borderInterpolate values
+        let b = Border::Reflect101;
+        assert_eq!(b.interpolate(-1, 5), 1);
+        assert_eq!(b.interpolate(-2, 5), 2);
+        assert_eq!(b.interpolate(5, 5), 3);
+        assert_eq!(b.interpolate(6, 5), 2);
+        assert_eq!(b.interpolate(-7, 5), 1); // repeated reflection
+        assert_eq!(b.interpolate(3, 1), 0);
+        let b = Border::Reflect;
+        assert_eq!(b.interpolate(-1, 5), 0);
+        assert_eq!(b.interpolate(5, 5), 4);
+        assert_eq!(b.interpolate(-12, 5), 1);
+        assert_eq!(Border::Replicate.interpolate(-3, 5), 0);
+        assert_eq!(Border::Replicate.interpolate(9, 5), 4);
+        for len in 1..6usize {
+            for p in -40..40 {
+                for b in [Border::Reflect101, Border::Reflect, Border::Replicate] {
+                    assert!(b.interpolate(p, len) < len);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn constant_stays_constant() {
+        let p = Plane::new(37, 11, 123.25f64);
+        let b = gaussian_blur_f64(&p, 8.0).unwrap();
+        for v in &b.data {
+            assert!((v - 123.25).abs() < 1e-12);
+        }
+        let p = Plane::new(5, 3, 7.5f32);
+        let b = gaussian_blur_f32(&p, 2.0).unwrap();
+        for v in &b.data {
+            assert!((v - 7.5).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn linear_ramp_unchanged_in_interior() {
+        let p = Plane::from_fn(120, 90, |x, y| {
+            0.37 * f64::from(x) - 1.1 * f64::from(y) + 3.0
+        });
+        let b = gaussian_blur_f64(&p, 4.0).unwrap();
+        let r = GaussianKernel::new(4.0).unwrap().radius() as u32;
+        let mut checked = 0;
+        for y in r..90 - r {
+            for x in r..120 - r {
+                let d = b.get(x, y).unwrap() - p.get(x, y).unwrap();
+                assert!(d.abs() < 1e-9, "({x},{y}) {d}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000);
+    }
+
+    #[test]
+    fn impulse_gives_kernel() {
+        let mut p = Plane::new(41, 41, 0.0f64);
+        p.set(20, 20, 1.0);
+        let b = gaussian_blur_f64(&p, 2.0).unwrap();
+        let k = GaussianKernel::new(2.0).unwrap();
+        let r = k.radius();
+        for dy in 0..k.size() {
+            for dx in 0..k.size() {
+                let v = b.get((20 + dx - r) as u32, (20 + dy - r) as u32).unwrap();
+                assert!((v - k.weights[dx] * k.weights[dy]).abs() < 1e-15);
+            }
+        }
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let empty = Plane::<f64>::new(0, 5, 0.0);
+        assert!(matches!(
+            gaussian_blur_f64(&empty, 1.0),
+            Err(VisionError::EmptyImage { .. })
+        ));
+        let mut p = Plane::new(4, 4, 1.0f32);
+        assert!(matches!(
+            gaussian_blur_f32(&p, 0.0),
+            Err(VisionError::InvalidSigma(_))
+        ));
+        assert!(matches!(
+            gaussian_blur_f32(&p, f64::INFINITY),
+            Err(VisionError::InvalidSigma(_))
+        ));
+        p.set(1, 2, f32::NAN);
+        assert!(matches!(
+            gaussian_blur_f32(&p, 1.0),
+            Err(VisionError::NonFinite(_))
+        ));
+        let one = Plane::new(1, 1, 3.0f64);
+        assert!((gaussian_blur_f64(&one, 3.0).unwrap().data[0] - 3.0).abs() < 1e-12);
+        assert!(GaussianKernel::with_size(1.0, 4).is_err());
+        let k = GaussianKernel::new(1.0).unwrap();
+        assert!(gaussian_blur_1d(&[], &k, Border::Reflect101).is_err());
+        let b = gaussian_blur_1d(&[1.0, 2.0, 3.0, 4.0], &k, Border::Replicate).unwrap();
+        assert!(b[0] > 1.0 && b[0] < 2.0 && b[3] < 4.0 && b[3] > 3.0);
+    }
+}
