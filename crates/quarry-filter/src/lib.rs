@@ -1,7 +1,48 @@
 //! # quarry-filter
 //!
-//! Placeholder crate: its contents land with their issue.
+//! Kalman, extended Kalman and particle filters over quarry-core's [`MotionModel`] and
+//! [`MeasurementModel`] traits, the models the four quarry trackers need, and the
+//! Rao-Blackwellized building blocks of a FastSLAM-style particle filter.
 //!
 //! ```
-//! assert_eq!(1 + 1, 2);
+//! use nalgebra::{Matrix4, Vector2, Vector4};
+//! use quarry_core::Gaussian;
+//! use quarry_filter::{ConstantVelocity2, Ekf, Position2};
+//!
+//! // A constant-velocity Kalman filter, state [x, y, vx, vy], position measurements.
+//! let x0 = Gaussian::try_new(Vector4::new(0.0, 0.0, 1.0, 0.0), Matrix4::identity())?;
+//! let mut kf = Ekf::new(x0, ConstantVelocity2::cwna(0.5)?, Position2::isotropic(0.5)?)?;
+//! for k in 1..=20 {
+//!     kf.predict(&(), 0.1)?;
+//!     kf.update(&Vector2::new(0.1 * k as f64, 0.0))?;   // Joseph-form update
+//! }
+//! assert!((kf.mean()[0] - 2.0).abs() < 0.1 && (kf.mean()[2] - 1.0).abs() < 0.2);
+//!
+//! // A NaN measurement is an error and leaves the state untouched.
+//! let before = *kf.state();
+//! assert!(kf.update(&Vector2::new(f64::NAN, 0.0)).is_err());
+//! assert_eq!(*kf.state(), before);
+//! # Ok::<(), quarry_filter::FilterError>(())
 //! ```
+//!
+//! ## Contents
+//! - [`ekf`]: [`ekf::predict`] / [`ekf::update`] on a [`Gaussian`], the [`Ekf`] wrapper,
+//!   [`UpdateForm`] (Joseph by default), [`Innovation`] statistics, and
+//!   [`ekf::MeasurementPrediction`] for evaluating many measurements against one prediction.
+//! - [`models`]: constant velocity (2-D, 3-D), constant acceleration, unicycle, spec 000's
+//!   bicycle, spec 001's ego-motion model; position and range-bearing measurements.
+//!
+//! [`Gaussian`]: quarry_core::Gaussian
+//! [`MotionModel`]: quarry_core::MotionModel
+//! [`MeasurementModel`]: quarry_core::MeasurementModel
+
+pub mod ekf;
+mod error;
+pub mod models;
+
+pub use ekf::{Ekf, Innovation, UpdateForm};
+pub use error::FilterError;
+pub use models::{
+    Bicycle, CaNoise, ConstantAcceleration2, ConstantVelocity2, ConstantVelocity3, CvNoise,
+    EgoCvModel, EgoModel, OdomNoise, Position2, Position3, RangeBearing, RangeBearingCv, Unicycle,
+};
