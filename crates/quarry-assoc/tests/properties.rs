@@ -1,0 +1,463 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! Property tests: exact marginals against brute-force enumeration, invariants, limits.
+
+use nalgebra::DMatrix;
+use proptest::prelude::*;
+use quarry_assoc::{Gnn, Jipda, Jpda, Method, PaperLikelihood, Pda, Solver};
+use quarry_core::{Associator, LikelihoodMatrix, TrackPrior};
+
+const NI: f64 = f64::NEG_INFINITY;
+
+/// Brute force over every feasible joint event: returns (β̃, c) for scores `L` (n × (m+1)).
+fn brute(l: &DMatrix<f64>) -> (DMatrix<f64>, f64) {
+    let (n, m1) = l.shape();
+    let mut beta = DMatrix::zeros(n, m1);
+    let mut c = 0.0;
+    let mut a = vec![0usize; n];
+    fn rec(
+        i: usize,
+        l: &DMatrix<f64>,
+        a: &mut Vec<usize>,
+        used: &mut Vec<bool>,
+        beta: &mut DMatrix<f64>,
+        c: &mut f64,
+    ) {
+        let (n, m1) = l.shape();
+        if i == n {
+            let w: f64 = (0..n).map(|k| l[(k, a[k])]).product();
+            *c += w;
+            for k in 0..n {
+                beta[(k, a[k])] += w;
+            }
+            return;
+        }
+        a[i] = 0;
+        rec(i + 1, l, a, used, beta, c);
+        for j in 1..m1 {
+            if !used[j] && l[(i, j)] > 0.0 {
+                used[j] = true;
+                a[i] = j;
+                rec(i + 1, l, a, used, beta, c);
+                used[j] = false;
+            }
+        }
+    }
+    let mut used = vec![false; m1];
+    rec(0, l, &mut a, &mut used, &mut beta, &mut c);
+    (beta / c, c)
+}
+
+/// The JPDA score matrix for given log-likelihoods.
+fn scores(lik: &DMatrix<f64>, pd: &[f64], pg: f64, kappa: f64, psi: &[f64]) -> DMatrix<f64> {
+    let (n, m) = lik.shape();
+    DMatrix::from_fn(n, m + 1, |i, j| {
+        if j == 0 {
+            1.0 - pd[i] * pg * psi[i]
+        } else {
+            pd[i] * psi[i] * lik[(i, j - 1)].exp() / kappa
+        }
+    })
+}
+
+prop_compose! {
+    /// Random small problem: n ≤ 5 tracks, m ≤ 6 detections, ~60 % of pairs gated.
+    fn problem()(n in 1usize..=5, m in 0usize..=6)
+        (vals in proptest::collection::vec(prop_oneof![3 => -12.0f64..0.0, 2 => Just(NI)], n * m),
+         pd in proptest::collection::vec(prop_oneof![4 => 0.3f64..1.0, 1 => Just(1.0), 1 => Just(0.0)], n),
+         psi in proptest::collection::vec(0.0f64..=1.0, n),
+         n in Just(n), m in Just(m), pg in 0.5f64..=1.0, kappa in 1e-4f64..1.0)
+        -> (DMatrix<f64>, Vec<f64>, Vec<f64>, f64, f64) {
+        (DMatrix::from_row_slice(n, m, &vals), pd, psi, pg, kappa)
+    }
+}
+
+fn priors(pd: &[f64], psi: Option<&[f64]>) -> Vec<TrackPrior> {
+    pd.iter()
+        .enumerate()
+        .map(|(i, &d)| TrackPrior {
+            existence: psi.map(|p| p[i]),
+            detection: Some(d),
+        })
+        .collect()
+}
+
+fn exact_solver() -> Solver {
+    Solver {
+        method: Method::Exact,
+        ..Solver::default()
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn jpda_exact_equals_brute_force((lik, pd, _psi, pg, kappa) in problem()) {
+        let n = lik.nrows();
+        let l = scores(&lik, &pd, pg, kappa, &vec![1.0; n]);
+        let (bb, c) = brute(&l);
+        let jpda = Jpda::new(0.5, pg, kappa).unwrap().with_solver(exact_solver());
+        let a = jpda.associate(&LikelihoodMatrix::new(lik.clone()).unwrap(), &priors(&pd, None)).unwrap();
+        if c > 0.0 {
+            prop_assert!((a.beta.clone() - bb).abs().max() < 1e-9, "{} vs brute", a.beta);
+            prop_assert!((a.log_normaliser - c.ln()).abs() < 1e-10 * c.ln().abs().max(1.0));
+        } else {
+            prop_assert_eq!(a.log_normaliser, NI);
+        }
+        // Invariants (spec 000 §6.1 test 9).
+        for i in 0..n {
+            prop_assert!((a.beta.row(i).sum() - 1.0).abs() < 1e-12);
+            for j in 0..lik.ncols() {
+                prop_assert!(a.beta[(i, j + 1)] >= 0.0 && a.beta[(i, j + 1)] <= 1.0 + 1e-12);
+                if lik[(i, j)] == NI { prop_assert_eq!(a.beta[(i, j + 1)], 0.0); }
+            }
+        }
+        for j in 0..lik.ncols() {
+            prop_assert!(a.beta.column(j + 1).sum() <= 1.0 + 1e-12);
+        }
+        // Auto (exact here) and k-best with every event agree with exact.
+        let auto = Jpda::new(0.5, pg, kappa).unwrap()
+            .associate(&LikelihoodMatrix::new(lik.clone()).unwrap(), &priors(&pd, None)).unwrap();
+        prop_assert!((auto.beta.clone() - a.beta.clone()).abs().max() < 1e-12);
+        if c > 0.0 {
+            let kb = Jpda::new(0.5, pg, kappa).unwrap()
+                .with_solver(Solver { method: Method::KBest { k: 100_000 }, ..Solver::default() })
+                .associate(&LikelihoodMatrix::new(lik.clone()).unwrap(), &priors(&pd, None)).unwrap();
+            prop_assert!((kb.beta - a.beta).abs().max() < 1e-9);
+            prop_assert!((kb.log_normaliser - c.ln()).abs() < 1e-9 * c.ln().abs().max(1.0));
+        }
+    }
+
+    #[test]
+    fn jipda_exact_equals_brute_force((lik, pd, psi, pg, kappa) in problem()) {
+        let n = lik.nrows();
+        let l = scores(&lik, &pd, pg, kappa, &psi);
+        let (bt, c) = brute(&l);
+        prop_assume!(c > 0.0);
+        let jipda = Jipda::new(0.5, pg, kappa).unwrap().with_solver(exact_solver());
+        let a = jipda.associate(&LikelihoodMatrix::new(lik.clone()).unwrap(), &priors(&pd, Some(&psi))).unwrap();
+        let ex = a.existence.clone().unwrap();
+        for i in 0..n {
+            let dpg = pd[i] * pg;
+            let r = if 1.0 - dpg * psi[i] > 0.0 { (1.0 - dpg) * psi[i] / (1.0 - dpg * psi[i]) } else { 0.0 };
+            let det: f64 = bt.row(i).iter().skip(1).sum();
+            let post = bt[(i, 0)] * r + det;
+            prop_assert!((ex[i] - post).abs() < 1e-9);
+            prop_assert!((0.0..=1.0).contains(&ex[i]));
+            prop_assert!((a.beta.row(i).sum() - 1.0).abs() < 1e-12);
+            if post > 1e-6 {
+                for j in 1..=lik.ncols() {
+                    prop_assert!((a.beta[(i, j)] - bt[(i, j)] / post).abs() < 1e-8);
+                }
+            }
+        }
+        prop_assert!((a.log_normaliser - c.ln()).abs() < 1e-10 * c.ln().abs().max(1.0));
+    }
+
+    #[test]
+    fn permutation_invariance((lik, pd, _psi, pg, kappa) in problem(), seed in any::<u64>()) {
+        let (n, m) = lik.shape();
+        // Deterministic permutations from the seed.
+        let mut pr: Vec<usize> = (0..n).collect();
+        let mut pc: Vec<usize> = (0..m).collect();
+        let mut s = seed | 1;
+        for v in [&mut pr, &mut pc] {
+            for k in (1..v.len()).rev() {
+                s ^= s << 13; s ^= s >> 7; s ^= s << 17;
+                v.swap(k, (s % (k as u64 + 1)) as usize);
+            }
+        }
+        let lik2 = DMatrix::from_fn(n, m, |i, j| lik[(pr[i], pc[j])]);
+        let pd2: Vec<f64> = pr.iter().map(|&i| pd[i]).collect();
+        let jpda = Jpda::new(0.5, pg, kappa).unwrap();
+        let a = jpda.associate(&LikelihoodMatrix::new(lik).unwrap(), &priors(&pd, None)).unwrap();
+        let b = jpda.associate(&LikelihoodMatrix::new(lik2).unwrap(), &priors(&pd2, None)).unwrap();
+        for i in 0..n {
+            prop_assert!((a.beta[(pr[i], 0)] - b.beta[(i, 0)]).abs() < 1e-12);
+            for j in 0..m {
+                prop_assert!((a.beta[(pr[i], pc[j] + 1)] - b.beta[(i, j + 1)]).abs() < 1e-12);
+            }
+        }
+        if a.log_normaliser.is_finite() {
+            prop_assert!((a.log_normaliser - b.log_normaliser).abs() < 1e-10 * a.log_normaliser.abs().max(1.0));
+        }
+    }
+
+    #[test]
+    fn gnn_equals_brute_force_optimum((lik, pd, _psi, pg, kappa) in problem()) {
+        let n = lik.nrows();
+        let l = scores(&lik, &pd, pg, kappa, &vec![1.0; n]);
+        // Best event by brute force.
+        let mut best = NI;
+        let (nn, m1) = l.shape();
+        let mut stack = vec![(0usize, vec![false; m1], 0.0f64)];
+        while let Some((i, used, lw)) = stack.pop() {
+            if i == nn { best = best.max(lw); continue; }
+            if l[(i, 0)] > 0.0 { stack.push((i + 1, used.clone(), lw + l[(i, 0)].ln())); }
+            for j in 1..m1 {
+                if !used[j] && l[(i, j)] > 0.0 {
+                    let mut u = used.clone(); u[j] = true;
+                    stack.push((i + 1, u, lw + l[(i, j)].ln()));
+                }
+            }
+        }
+        let g = Gnn::new(0.5, pg, kappa).unwrap();
+        let a = g.associate(&LikelihoodMatrix::new(lik).unwrap(), &priors(&pd, None)).unwrap();
+        if best.is_finite() {
+            prop_assert!((a.log_normaliser - best).abs() < 1e-9 * best.abs().max(1.0), "{} vs {}", a.log_normaliser, best);
+        } else {
+            prop_assert_eq!(a.log_normaliser, NI);
+        }
+        let asg = a.assignment.unwrap();
+        let mut seen = std::collections::HashSet::new();
+        for c in asg.iter().flatten() { prop_assert!(seen.insert(*c)); }
+    }
+
+    #[test]
+    fn lbp_within_tolerance_of_exact(n in 2usize..=7, extra in 0usize..=2,
+                                     vals in proptest::collection::vec(-6.0f64..0.0, 81),
+                                     pd in 0.5f64..0.99, kappa in 1e-3f64..0.5) {
+        // Dense, mutually gated clusters: the hardest case for LBP.
+        let m = n + extra;
+        let lik = DMatrix::from_fn(n, m, |i, j| vals[i * 9 + j]);
+        let lm = LikelihoodMatrix::new(lik).unwrap();
+        let pri = vec![TrackPrior::default(); n];
+        let ex = Jpda::new(pd, 0.99, kappa).unwrap().with_solver(exact_solver()).associate(&lm, &pri).unwrap();
+        let lb = Jpda::new(pd, 0.99, kappa).unwrap()
+            .with_solver(Solver { method: Method::Lbp, ..Solver::default() })
+            .associate(&lm, &pri).unwrap();
+        let diff = (ex.beta.clone() - lb.beta.clone()).abs();
+        let err = diff.max();
+        let mean = diff.sum() / (n * (m + 1)) as f64;
+        // Documented tolerance (engine docs): worst entry ≤ 0.3, mean ≤ 0.05 on dense clusters.
+        prop_assert!(err <= 0.3, "LBP error {err}");
+        prop_assert!(mean <= 0.05, "LBP mean error {mean}");
+        for i in 0..n { prop_assert!((lb.beta.row(i).sum() - 1.0).abs() < 1e-9); }
+        // Bethe ln c is a lower bound of the permanent-type sum (Gurvits), within (n+m)/2 ln 2.
+        prop_assert!(lb.log_normaliser <= ex.log_normaliser + 1e-9);
+        prop_assert!(ex.log_normaliser - lb.log_normaliser <= (n + m) as f64 / 2.0 * 2f64.ln());
+    }
+
+    #[test]
+    fn lbp_exact_on_chains(n in 2usize..=6, vals in proptest::collection::vec(-6.0f64..0.0, 12), kappa in 1e-3f64..0.5) {
+        // Track i gates detections i and i+1: an acyclic gating graph, where BP is exact.
+        let m = n + 1;
+        let lik = DMatrix::from_fn(n, m, |i, j| if j == i || j == i + 1 { vals[2 * i + (j - i)] } else { NI });
+        let lm = LikelihoodMatrix::new(lik).unwrap();
+        let pri = vec![TrackPrior::default(); n];
+        let ex = Jpda::new(0.9, 0.99, kappa).unwrap().with_solver(exact_solver()).associate(&lm, &pri).unwrap();
+        let lb = Jpda::new(0.9, 0.99, kappa).unwrap()
+            .with_solver(Solver { method: Method::Lbp, ..Solver::default() })
+            .associate(&lm, &pri).unwrap();
+        prop_assert!((ex.beta - lb.beta).abs().max() < 1e-8);
+        prop_assert!((ex.log_normaliser - lb.log_normaliser).abs() < 1e-8);
+    }
+
+    #[test]
+    fn pda_is_jpda_for_separated_tracks(vals in proptest::collection::vec(-8.0f64..0.0, 12)) {
+        // 3 tracks, each gating its own 2 detections only.
+        let lik = DMatrix::from_fn(3, 6, |i, j| if j / 2 == i { vals[i * 2 + j % 2] } else { NI });
+        let lm = LikelihoodMatrix::new(lik).unwrap();
+        let pri = vec![TrackPrior::default(); 3];
+        let a = Jpda::new(0.8, 0.99, 0.01).unwrap().associate(&lm, &pri).unwrap();
+        let b = Pda { pd: 0.8, prob_gate: 0.99, clutter_density: 0.01 }.associate(&lm, &pri).unwrap();
+        prop_assert!((a.beta - b.beta).abs().max() < 1e-12);
+        prop_assert!((a.log_normaliser - b.log_normaliser).abs() < 1e-10);
+    }
+}
+
+#[test]
+fn one_target_full_detection_is_paper_beta() {
+    // P_D = 1, P_G = 1: L_0 = 0 and κ cancels ⇒ β_j = g_j / Σ g (spec 000 §6.1 test 12).
+    let lik = DMatrix::from_row_slice(1, 3, &[-1.0, -2.5, -0.3]);
+    let lm = LikelihoodMatrix::new(lik).unwrap();
+    let a = Jpda::new(1.0, 1.0, 0.37)
+        .unwrap()
+        .associate(&lm, &[TrackPrior::default()])
+        .unwrap();
+    let p = PaperLikelihood
+        .associate(&lm, &[TrackPrior::default()])
+        .unwrap();
+    assert!((a.beta.clone() - p.beta).abs().max() < 1e-12);
+    assert_eq!(a.beta[(0, 0)], 0.0);
+}
+
+#[test]
+fn jipda_with_certain_existence_is_jpda() {
+    let lik = DMatrix::from_row_slice(3, 3, &[-1.0, -2.0, NI, -1.5, -0.5, -3.0, NI, -2.0, -1.0]);
+    let lm = LikelihoodMatrix::new(lik).unwrap();
+    let pri = vec![
+        TrackPrior {
+            existence: Some(1.0),
+            detection: None
+        };
+        3
+    ];
+    let a = Jpda::new(0.9, 0.99, 0.05)
+        .unwrap()
+        .associate(&lm, &pri)
+        .unwrap();
+    let b = Jipda::new(0.9, 0.99, 0.05)
+        .unwrap()
+        .associate(&lm, &pri)
+        .unwrap();
+    assert!((a.beta - b.beta).abs().max() < 1e-12);
+    assert!((a.log_normaliser - b.log_normaliser).abs() < 1e-12);
+    assert!(
+        b.existence
+            .unwrap()
+            .iter()
+            .all(|&e| (e - 1.0).abs() < 1e-12)
+    );
+}
+
+#[test]
+fn paper_eq11_is_finite_when_likelihoods_underflow() {
+    let lik = DMatrix::from_row_slice(2, 2, &[-800.0, -801.0, -802.0, -800.5]);
+    let w = quarry_assoc::weights_eq11(&LikelihoodMatrix::new(lik).unwrap());
+    assert!(w.is_finite());
+    // Closed form per column: LSE(2 ln g) − LSE(ln g).
+    let lse = |a: f64, b: f64| a.max(b) + (1.0 + (-(a - b).abs()).exp()).ln();
+    let want = (lse(-1600.0, -1604.0) - lse(-800.0, -802.0))
+        + (lse(-1602.0, -1601.0) - lse(-801.0, -800.5));
+    assert!((w - want).abs() < 1e-9);
+}
+
+#[test]
+fn underflowing_likelihoods_are_fine() {
+    // ln g ≈ −2000: exp underflows, the log-domain engine does not.
+    let lik = DMatrix::from_row_slice(2, 2, &[-2000.0, -2001.0, -2000.5, -2000.0]);
+    let lm = LikelihoodMatrix::new(lik).unwrap();
+    let a = Jpda::new(0.9, 0.99, 1e-3)
+        .unwrap()
+        .associate(&lm, &[TrackPrior::default(); 2])
+        .unwrap();
+    assert!(a.log_normaliser.is_finite());
+    assert!((a.beta[(0, 0)] - 1.0).abs() < 1e-12); // detections hopeless vs missed
+}
+
+#[test]
+fn bad_inputs_give_errors_or_defined_results() {
+    let lm = LikelihoodMatrix::new(DMatrix::from_row_slice(2, 1, &[-1.0, NI])).unwrap();
+    let pri = [TrackPrior::default(); 2];
+    // Wrong number of priors.
+    assert!(
+        Jpda::new(0.9, 0.99, 1e-3)
+            .unwrap()
+            .associate(&lm, &pri[..1])
+            .is_err()
+    );
+    // Bad parameters.
+    assert!(Jpda::new(f64::NAN, 0.99, 1e-3).is_err());
+    assert!(Jpda::new(0.9, 0.0, 1e-3).is_err());
+    assert!(Jpda::new(0.9, 0.99, 0.0).is_err());
+    assert!(
+        Jipda::new(0.9, 0.99, 1e-3)
+            .unwrap()
+            .with_survival(1.5)
+            .associate(&lm, &pri)
+            .is_err()
+    );
+    let bad = [
+        TrackPrior {
+            existence: Some(f64::NAN),
+            detection: None,
+        },
+        TrackPrior::default(),
+    ];
+    assert!(
+        Jipda::new(0.9, 0.99, 1e-3)
+            .unwrap()
+            .associate(&lm, &bad)
+            .is_err()
+    );
+    // Zero detection probability: nothing is associated.
+    let z = [TrackPrior {
+        existence: None,
+        detection: Some(0.0),
+    }; 2];
+    let a = Jpda::new(0.9, 0.99, 1e-3)
+        .unwrap()
+        .associate(&lm, &z)
+        .unwrap();
+    assert_eq!(a.beta[(0, 0)], 1.0);
+    assert_eq!(a.log_normaliser, 0.0);
+    // P_D P_G = 1 and an empty gate: impossible event, defined result.
+    let a = Jpda::new(1.0, 1.0, 1e-3)
+        .unwrap()
+        .associate(&lm, &pri)
+        .unwrap();
+    assert_eq!(a.log_normaliser, NI);
+    assert_eq!(a.beta[(1, 0)], 1.0);
+    // Empty problems.
+    let e = LikelihoodMatrix::new(DMatrix::zeros(0, 3)).unwrap();
+    assert_eq!(
+        Jpda::new(0.9, 0.99, 1e-3)
+            .unwrap()
+            .associate(&e, &[])
+            .unwrap()
+            .beta
+            .shape(),
+        (0, 4)
+    );
+    let e = LikelihoodMatrix::new(DMatrix::zeros(2, 0)).unwrap();
+    let a = Jpda::new(0.9, 0.99, 1e-3)
+        .unwrap()
+        .associate(&e, &pri)
+        .unwrap();
+    assert!((a.log_normaliser - 2.0 * (1.0 - 0.9 * 0.99f64).ln()).abs() < 1e-12);
+    // Exact on an oversized cluster is an error, Auto falls back to LBP.
+    let big = LikelihoodMatrix::new(DMatrix::from_fn(24, 24, |i, j| -(((i + 2 * j) % 5) as f64)))
+        .unwrap();
+    let p24 = vec![TrackPrior::default(); 24];
+    let small = Solver {
+        method: Method::Exact,
+        max_states: 1000,
+        ..Solver::default()
+    };
+    assert!(
+        Jpda::new(0.9, 0.99, 1e-3)
+            .unwrap()
+            .with_solver(small)
+            .associate(&big, &p24)
+            .is_err()
+    );
+    let a = Jpda::new(0.9, 0.99, 1e-3)
+        .unwrap()
+        .associate(&big, &p24)
+        .unwrap();
+    for i in 0..24 {
+        assert!((a.beta.row(i).sum() - 1.0).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn twelve_mutually_gated_targets_are_exact() {
+    let n = 12;
+    let lik = DMatrix::from_fn(n, n, |i, j| {
+        -0.5 * ((i as f64 - j as f64) * 0.7).powi(2) - 0.1 * (i * j % 3) as f64
+    });
+    let lm = LikelihoodMatrix::new(lik).unwrap();
+    let pri = vec![TrackPrior::default(); n];
+    let ex = Jpda::new(0.9, 0.99, 1e-2)
+        .unwrap()
+        .with_solver(exact_solver())
+        .associate(&lm, &pri)
+        .unwrap();
+    for i in 0..n {
+        assert!((ex.beta.row(i).sum() - 1.0).abs() < 1e-12);
+    }
+    // Row-permutation check of exactness at this size: transpose-symmetric input ⇒ symmetric β.
+    let sym = DMatrix::from_fn(n, n, |i, j| -0.3 * ((i as f64 - j as f64).abs()));
+    let lm = LikelihoodMatrix::new(sym).unwrap();
+    let b = Jpda::new(0.9, 0.99, 1e-2)
+        .unwrap()
+        .with_solver(exact_solver())
+        .associate(&lm, &pri)
+        .unwrap();
+    for i in 0..n {
+        for j in 0..n {
+            assert!((b.beta[(i, j + 1)] - b.beta[(j, i + 1)]).abs() < 1e-12);
+        }
+    }
+}
