@@ -1,0 +1,1085 @@
+//! SIFT keypoints and descriptors (Lowe 2004), following OpenCV's `cv::SIFT` wherever Lowe
+//! leaves a choice (spec 004 §4), so that keypoints, descriptors and descriptor distances can be
+//! compared one to one with OpenCV's.
+//!
+//! ```
+//! use quarry_core::{FeatureExtractor, Plane};
+//! use quarry_vision::sift::{Sift, SiftParams};
+//!
+//! // A dark disc on a bright background: a blob SIFT finds at the disc's scale.
+//! let img = Plane::from_fn(64, 64, |x, y| {
+//!     let (dx, dy) = (x as f32 - 31.5, y as f32 - 31.5);
+//!     if dx * dx + dy * dy < 36.0 { 40u8 } else { 200u8 }
+//! });
+//! let sift = Sift::new(SiftParams::default()).unwrap();
+//! let (kps, desc) = sift.detect_and_compute(&img).unwrap();
+//! assert_eq!(kps.len(), desc.len());
+//! assert!(kps.iter().any(|k| (k.x - 31.5).abs() < 1.0 && (k.y - 31.5).abs() < 1.0));
+//! ```
+//!
+//! # Choices (where Lowe leaves one, OpenCV's; where the spec resolves one, the spec's)
+//! - Intensities are kept in 0..255 (as OpenCV) and derivatives are scaled by 1/255 inside the
+//!   refinement, so the contrast threshold `0.04 / s` applies to intensities in [0, 1].
+//! - The scale space uses [`crate::blur::gaussian_blur_f32`] (OpenCV's kernel-size rule,
+//!   reflect-101), bilinear ×2 up-sampling with pixel-centre alignment, and decimation by taking
+//!   every second pixel.
+//! - Keypoint coordinates follow OpenCV exactly: `x = (column + δx)·2^octave` in octave pixels
+//!   mapped to input pixels (for the up-sampled octave this is OpenCV's `KeyPoint.pt`, which
+//!   carries a 0.25 px offset with respect to pixel centres).
+//! - Gradient orientations use OpenCV's polynomial `fastAtan2` (error below 0.01°) so that
+//!   histogram bins agree with OpenCV's.
+//! - Keypoints are returned sorted by (x, y, σ, angle, response), exact duplicates removed.
+//! - Parallelism (feature `parallel`): the Gaussian blurs are row-parallel, and DoG images,
+//!   extremum scans, candidates and descriptors are processed in parallel with order-preserving
+//!   collection; results are bit-identical for any number of threads.
+
+use crate::VisionError;
+use quarry_core::{
+    CoreError, DescriptorExtractor, FeatureDetector, FeatureExtractor, Keypoint, Plane,
+};
+use serde::{Deserialize, Serialize};
+
+#[cfg(feature = "parallel")]
+use rayon::prelude::*;
+
+/// A SIFT descriptor: 4×4 cells × 8 orientation bins, element `(row·4 + col)·8 + bin`
+/// (OpenCV's layout), L2 norm ≈ 512.
+pub type SiftDescriptor = [u8; 128];
+
+/// Length of a SIFT descriptor.
+pub const DESCRIPTOR_LEN: usize = 128;
+
+/// Largest accepted image, in pixels (16 Mpx, e.g. 4096×4096). With the up-sampled first
+/// octave the scale space takes about 240 bytes per input pixel (about 4 GB at the limit).
+pub const MAX_PIXELS: u64 = 1 << 24;
+
+/// Smallest accepted image side in pixels. The 5-px border ignored in every octave leaves no
+/// room for extrema on smaller images.
+pub const MIN_SIDE: u32 = 16;
+
+const IMG_BORDER: usize = 5;
+const MAX_INTERP_STEPS: usize = 5;
+const ORI_HIST_BINS: usize = 36;
+const ORI_SIG_FCTR: f32 = 1.5;
+const ORI_RADIUS: f32 = 4.5;
+const ORI_PEAK_RATIO: f32 = 0.8;
+const DESCR_WIDTH: usize = 4;
+const DESCR_HIST_BINS: usize = 8;
+const DESCR_SCL_FCTR: f32 = 3.0;
+const DESCR_MAG_THR: f32 = 0.2;
+const INT_DESCR_FCTR: f32 = 512.0;
+
+/// SIFT parameters. `Default` is OpenCV's `SIFT_create()` (spec 004 §4.1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SiftParams {
+    /// Intervals per octave s (`nOctaveLayers`); 3.
+    pub n_octave_layers: u32,
+    /// Base scale σ₀ of each octave; 1.6.
+    pub sigma: f64,
+    /// Blur assumed already present in the input σ_in; 0.5.
+    pub input_blur: f64,
+    /// Contrast threshold T_c (for intensities in [0, 1]); applied as T_c / s. 0.04.
+    pub contrast_threshold: f64,
+    /// Edge threshold r (ratio of principal curvatures); 10.
+    pub edge_threshold: f64,
+    /// Up-sample the input ×2 for a first octave −1; true.
+    pub upsample: bool,
+    /// Keep only the `max_features` strongest keypoints (by response); 0 keeps all.
+    pub max_features: usize,
+}
+
+impl Default for SiftParams {
+    fn default() -> Self {
+        Self {
+            n_octave_layers: 3,
+            sigma: 1.6,
+            input_blur: 0.5,
+            contrast_threshold: 0.04,
+            edge_threshold: 10.0,
+            upsample: true,
+            max_features: 0,
+        }
+    }
+}
+
+impl SiftParams {
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), VisionError> {
+        if !(1..=16).contains(&self.n_octave_layers) {
+            return Err(CoreError::invalid("n_octave_layers", "must be in 1..=16").into());
+        }
+        if !(self.sigma.is_finite() && self.sigma > 0.0 && self.sigma < 64.0) {
+            return Err(CoreError::invalid("sigma", "must be finite and in (0, 64)").into());
+        }
+        if !(self.input_blur.is_finite() && self.input_blur >= 0.0) {
+            return Err(CoreError::invalid("input_blur", "must be finite and >= 0").into());
+        }
+        if !(self.contrast_threshold.is_finite() && self.contrast_threshold >= 0.0) {
+            return Err(CoreError::invalid("contrast_threshold", "must be finite and >= 0").into());
+        }
+        if !(self.edge_threshold.is_finite() && self.edge_threshold > 0.0) {
+            return Err(CoreError::invalid("edge_threshold", "must be finite and > 0").into());
+        }
+        Ok(())
+    }
+}
+
+/// The SIFT detector and descriptor extractor.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Sift {
+    params: SiftParams,
+}
+
+/// One octave of the scale space: `s + 3` Gaussian images and `s + 2` DoG images.
+#[derive(Debug, Clone)]
+struct Octave {
+    gauss: Vec<Plane<f32>>,
+    dog: Vec<Plane<f32>>,
+}
+
+/// The Gaussian and difference-of-Gaussian pyramids of one image.
+#[derive(Debug, Clone)]
+pub struct ScaleSpace {
+    octaves: Vec<Octave>,
+    first_octave: i32,
+    layers: usize,
+}
+
+impl ScaleSpace {
+    /// Number of octaves.
+    pub fn n_octaves(&self) -> usize {
+        self.octaves.len()
+    }
+
+    /// Index of the first octave (−1 when up-sampled).
+    pub fn first_octave(&self) -> i32 {
+        self.first_octave
+    }
+
+    /// Gaussian image `layer` (0..s+3) of `octave` (counted from [`Self::first_octave`]).
+    pub fn gaussian(&self, octave: i32, layer: usize) -> Option<&Plane<f32>> {
+        let o = usize::try_from(octave - self.first_octave).ok()?;
+        self.octaves.get(o)?.gauss.get(layer)
+    }
+
+    /// DoG image `layer` (0..s+2) of `octave`: `G[layer + 1] − G[layer]`.
+    pub fn dog(&self, octave: i32, layer: usize) -> Option<&Plane<f32>> {
+        let o = usize::try_from(octave - self.first_octave).ok()?;
+        self.octaves.get(o)?.dog.get(layer)
+    }
+}
+
+/// Maps a quarry-vision error onto the shared kinds returned by the core traits.
+fn to_core(e: VisionError) -> CoreError {
+    match e {
+        VisionError::Core(c) => c,
+        VisionError::NonFinite(what) => CoreError::NonFinite { what },
+        other => CoreError::invalid("image", other.to_string()),
+    }
+}
+
+impl Sift {
+    /// A SIFT with checked parameters.
+    pub fn new(params: SiftParams) -> Result<Self, VisionError> {
+        params.validate()?;
+        Ok(Self { params })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &SiftParams {
+        &self.params
+    }
+
+    /// Checks the size of an input image.
+    fn check_size(width: u32, height: u32) -> Result<(), VisionError> {
+        if width < MIN_SIDE || height < MIN_SIDE {
+            return Err(VisionError::EmptyImage {
+                what: "SIFT",
+                width,
+                height,
+                min: MIN_SIDE,
+            });
+        }
+        let n = u64::from(width) * u64::from(height);
+        if n > MAX_PIXELS {
+            return Err(VisionError::TooLarge {
+                what: "SIFT",
+                width,
+                height,
+                limit: MAX_PIXELS,
+            });
+        }
+        Ok(())
+    }
+
+    /// Converts an 8-bit image to the 0..255 float image SIFT works on.
+    fn to_f32(img: &Plane<u8>) -> Result<Plane<f32>, VisionError> {
+        Self::check_size(img.width, img.height)?;
+        Ok(img.map(|&v| f32::from(v)))
+    }
+
+    /// Builds the scale space of a float image with intensities in 0..255 (NaN or infinite pixels
+    /// are an error).
+    pub fn scale_space(&self, img: &Plane<f32>) -> Result<ScaleSpace, VisionError> {
+        Self::check_size(img.width, img.height)?;
+        if img.data.len() != img.width as usize * img.height as usize {
+            return Err(CoreError::DimensionMismatch {
+                what: "SIFT image data length (width * height)",
+                expected: img.width as usize * img.height as usize,
+                got: img.data.len(),
+            }
+            .into());
+        }
+        if !img.data.iter().all(|v| v.is_finite()) {
+            return Err(VisionError::NonFinite("SIFT input image"));
+        }
+        build_scale_space(img, &self.params)
+    }
+
+    /// Detects keypoints in an 8-bit grey image.
+    pub fn detect_keypoints(&self, img: &Plane<u8>) -> Result<Vec<Keypoint>, VisionError> {
+        let ss = self.scale_space(&Self::to_f32(img)?)?;
+        Ok(self.detect_in(&ss))
+    }
+
+    /// Detects keypoints and computes their descriptors in an 8-bit grey image, building the
+    /// scale space once.
+    pub fn extract(
+        &self,
+        img: &Plane<u8>,
+    ) -> Result<(Vec<Keypoint>, Vec<SiftDescriptor>), VisionError> {
+        self.extract_f32(&Self::to_f32(img)?)
+    }
+
+    /// [`Self::extract`] on a float image with intensities in 0..255.
+    pub fn extract_f32(
+        &self,
+        img: &Plane<f32>,
+    ) -> Result<(Vec<Keypoint>, Vec<SiftDescriptor>), VisionError> {
+        let ss = self.scale_space(img)?;
+        let kps = self.detect_in(&ss);
+        let desc = self.describe_in(&ss, &kps)?;
+        Ok((kps, desc.iter().map(quantize).collect()))
+    }
+
+    /// Keypoints of a scale space.
+    pub fn detect_in(&self, ss: &ScaleSpace) -> Vec<Keypoint> {
+        let mut kps = find_keypoints(ss, &self.params);
+        sort_dedup(&mut kps);
+        if self.params.max_features > 0 && kps.len() > self.params.max_features {
+            retain_best(&mut kps, self.params.max_features);
+        }
+        kps
+    }
+
+    /// Unit-norm float descriptors (after the 0.2 clamp and renormalisation, before
+    /// quantisation) of the keypoints `kps` in scale space `ss`.
+    pub fn describe_in(
+        &self,
+        ss: &ScaleSpace,
+        kps: &[Keypoint],
+    ) -> Result<Vec<[f32; DESCRIPTOR_LEN]>, VisionError> {
+        // Check every keypoint first, so the (parallel) computation cannot fail.
+        let mut jobs = Vec::with_capacity(kps.len());
+        for kp in kps {
+            jobs.push(descriptor_job(ss, kp)?);
+        }
+        let run = |&(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
+            let img = &ss.octaves[o].gauss[layer];
+            let mut v = raw_descriptor(img, x, y, ori, scl);
+            normalize_descriptor(&mut v);
+            v
+        };
+        #[cfg(feature = "parallel")]
+        let out = jobs.par_iter().with_min_len(16).map(run).collect();
+        #[cfg(not(feature = "parallel"))]
+        let out = jobs.iter().map(run).collect();
+        Ok(out)
+    }
+
+    /// Descriptors of given keypoints (as produced by this detector, or by OpenCV: `octave` and
+    /// `layer` must name an image of the scale space) in an 8-bit grey image.
+    pub fn describe(
+        &self,
+        img: &Plane<u8>,
+        kps: &[Keypoint],
+    ) -> Result<Vec<SiftDescriptor>, VisionError> {
+        let ss = self.scale_space(&Self::to_f32(img)?)?;
+        Ok(self.describe_in(&ss, kps)?.iter().map(quantize).collect())
+    }
+}
+
+impl FeatureDetector for Sift {
+    fn detect(&self, img: &Plane<u8>) -> Result<Vec<Keypoint>, CoreError> {
+        self.detect_keypoints(img).map_err(to_core)
+    }
+}
+
+impl DescriptorExtractor for Sift {
+    type Descriptor = SiftDescriptor;
+    fn compute(&self, img: &Plane<u8>, kps: &[Keypoint]) -> Result<Vec<SiftDescriptor>, CoreError> {
+        self.describe(img, kps).map_err(to_core)
+    }
+}
+
+impl FeatureExtractor for Sift {
+    fn detect_and_compute(
+        &self,
+        img: &Plane<u8>,
+    ) -> Result<(Vec<Keypoint>, Vec<SiftDescriptor>), CoreError> {
+        self.extract(img).map_err(to_core)
+    }
+}
+
+/// Rounds half to even, as OpenCV's `cvRound`.
+#[inline]
+fn cv_round(v: f32) -> i32 {
+    v.round_ties_even() as i32
+}
+
+/// OpenCV's `fastAtan2`: atan2(y, x) in degrees in [0, 360), polynomial approximation.
+#[inline]
+pub(crate) fn fast_atan2(y: f32, x: f32) -> f32 {
+    const K: f32 = 180.0 / std::f32::consts::PI;
+    const P1: f32 = 0.999_787_84 * K;
+    const P3: f32 = -0.325_808_4 * K;
+    const P5: f32 = 0.155_578_65 * K;
+    const P7: f32 = -0.044_326_556 * K;
+    // OpenCV adds (float)DBL_EPSILON to the denominator.
+    const DBL_EPS: f32 = f64::EPSILON as f32;
+    let ax = x.abs();
+    let ay = y.abs();
+    let mut a = if ax >= ay {
+        let c = ay / (ax + DBL_EPS);
+        let c2 = c * c;
+        (((P7 * c2 + P5) * c2 + P3) * c2 + P1) * c
+    } else {
+        let c = ax / (ay + DBL_EPS);
+        let c2 = c * c;
+        90.0 - (((P7 * c2 + P5) * c2 + P3) * c2 + P1) * c
+    };
+    if x < 0.0 {
+        a = 180.0 - a;
+    }
+    if y < 0.0 {
+        a = 360.0 - a;
+    }
+    a
+}
+
+/// Bilinear ×2 up-sampling with pixel-centre alignment (OpenCV `resize`, `INTER_LINEAR`).
+fn upsample2(src: &Plane<f32>) -> Plane<f32> {
+    let (w, h) = (src.width as usize, src.height as usize);
+    let (w2, h2) = (2 * w, 2 * h);
+    // Source index and weight of the second tap for output coordinate i of a side of n pixels.
+    let taps = |n: usize, n2: usize| -> Vec<(usize, usize, f32)> {
+        (0..n2)
+            .map(|i| {
+                let f = (i as f32 + 0.5) * 0.5 - 0.5;
+                let s = f.floor();
+                let mut frac = f - s;
+                let mut s = s as isize;
+                if s < 0 {
+                    s = 0;
+                    frac = 0.0;
+                }
+                let s = s as usize;
+                if s >= n - 1 {
+                    (n - 1, n - 1, 0.0)
+                } else {
+                    (s, s + 1, frac)
+                }
+            })
+            .collect()
+    };
+    let tx = taps(w, w2);
+    let ty = taps(h, h2);
+    // Horizontal pass for each source row, then vertical interpolation.
+    let mut hrows = vec![0f32; w2 * h];
+    for y in 0..h {
+        let row = &src.data[y * w..(y + 1) * w];
+        let out = &mut hrows[y * w2..(y + 1) * w2];
+        for (o, &(a, b, f)) in out.iter_mut().zip(&tx) {
+            *o = row[a] * (1.0 - f) + row[b] * f;
+        }
+    }
+    let mut data = vec![0f32; w2 * h2];
+    for (y, &(a, b, f)) in ty.iter().enumerate() {
+        let ra = &hrows[a * w2..(a + 1) * w2];
+        let rb = &hrows[b * w2..(b + 1) * w2];
+        let out = &mut data[y * w2..(y + 1) * w2];
+        for ((o, &va), &vb) in out.iter_mut().zip(ra).zip(rb) {
+            *o = va * (1.0 - f) + vb * f;
+        }
+    }
+    Plane {
+        width: w2 as u32,
+        height: h2 as u32,
+        data,
+    }
+}
+
+/// Decimation by 2: pixel (x, y) ← (2x, 2y).
+fn downsample2(src: &Plane<f32>) -> Plane<f32> {
+    let (w, h) = (src.width as usize, src.height as usize);
+    let (w2, h2) = (w / 2, h / 2);
+    let mut data = Vec::with_capacity(w2 * h2);
+    for y in 0..h2 {
+        let row = &src.data[2 * y * w..2 * y * w + w];
+        data.extend(row.iter().step_by(2).take(w2));
+    }
+    Plane {
+        width: w2 as u32,
+        height: h2 as u32,
+        data,
+    }
+}
+
+/// Gaussian blur of the scale space: [`crate::blur::gaussian_blur_f32`] (OpenCV's kernel size
+/// rule, reflect-101; row-parallel and bit-identical for any thread count with `parallel`).
+fn blur(src: &Plane<f32>, sigma: f64) -> Result<Plane<f32>, VisionError> {
+    crate::blur::gaussian_blur_f32(src, sigma)
+}
+
+fn sub_planes(a: &Plane<f32>, b: &Plane<f32>) -> Plane<f32> {
+    Plane {
+        width: a.width,
+        height: a.height,
+        data: a.data.iter().zip(&b.data).map(|(x, y)| x - y).collect(),
+    }
+}
+
+fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, VisionError> {
+    let s = p.n_octave_layers as usize;
+    let sigma = p.sigma as f32;
+    let sin = p.input_blur as f32;
+    let (base, first_octave) = if p.upsample {
+        let sig_diff = (sigma * sigma - sin * sin * 4.0).max(0.01).sqrt();
+        (blur(&upsample2(img), f64::from(sig_diff))?, -1)
+    } else {
+        let sig_diff = (sigma * sigma - sin * sin).max(0.01).sqrt();
+        (blur(img, f64::from(sig_diff))?, 0)
+    };
+    let min_side = f64::from(base.width.min(base.height));
+    let n_oct = ((min_side.log2() - 2.0).round_ties_even() as i32 - first_octave).max(1) as usize;
+
+    // Incremental sigmas (OpenCV's buildGaussianPyramid, in f64).
+    let mut sig = vec![p.sigma; s + 3];
+    let k = 2f64.powf(1.0 / s as f64);
+    for (i, si) in sig.iter_mut().enumerate().skip(1) {
+        let prev = k.powi(i as i32 - 1) * p.sigma;
+        let total = prev * k;
+        *si = (total * total - prev * prev).sqrt();
+    }
+
+    let mut octaves: Vec<Octave> = Vec::with_capacity(n_oct);
+    let mut next_base = Some(base);
+    for _ in 0..n_oct {
+        let g0 = match next_base.take() {
+            Some(b) => b,
+            None => match octaves.last() {
+                Some(prev) => downsample2(&prev.gauss[s]),
+                None => break,
+            },
+        };
+        if g0.width < 2 || g0.height < 2 {
+            break;
+        }
+        let mut gauss = Vec::with_capacity(s + 3);
+        gauss.push(g0);
+        for &si in &sig[1..] {
+            let next = blur(&gauss[gauss.len() - 1], si)?;
+            gauss.push(next);
+        }
+        let dog_of = |i: usize| sub_planes(&gauss[i + 1], &gauss[i]);
+        #[cfg(feature = "parallel")]
+        let dog: Vec<Plane<f32>> = (0..s + 2).into_par_iter().map(dog_of).collect();
+        #[cfg(not(feature = "parallel"))]
+        let dog: Vec<Plane<f32>> = (0..s + 2).map(dog_of).collect();
+        octaves.push(Octave { gauss, dog });
+    }
+    Ok(ScaleSpace {
+        octaves,
+        first_octave,
+        layers: s,
+    })
+}
+
+/// Is the DoG value at (layer, r, c) an extremum of its 3×3×3 block above the pre-threshold?
+#[inline]
+fn is_extremum(dog: &[Plane<f32>], layer: usize, r: usize, c: usize, w: usize, thr: f32) -> bool {
+    let cur = &dog[layer].data;
+    let idx = r * w + c;
+    let val = cur[idx];
+    if val.abs() <= thr {
+        return false;
+    }
+    let prev = &dog[layer - 1].data;
+    let next = &dog[layer + 1].data;
+    let offs = [
+        idx - w - 1,
+        idx - w,
+        idx - w + 1,
+        idx - 1,
+        idx + 1,
+        idx + w - 1,
+        idx + w,
+        idx + w + 1,
+    ];
+    if val > 0.0 {
+        offs.iter().all(|&o| val >= cur[o])
+            && prev[idx] <= val
+            && next[idx] <= val
+            && offs.iter().all(|&o| val >= prev[o] && val >= next[o])
+    } else {
+        offs.iter().all(|&o| val <= cur[o])
+            && prev[idx] >= val
+            && next[idx] >= val
+            && offs.iter().all(|&o| val <= prev[o] && val <= next[o])
+    }
+}
+
+/// A refined extremum.
+#[derive(Debug, Clone, Copy)]
+struct Refined {
+    octave: usize,
+    layer: usize,
+    r: usize,
+    c: usize,
+    kp: Keypoint,
+}
+
+/// Quadratic sub-pixel refinement with the contrast and edge tests (OpenCV's
+/// `adjustLocalExtrema`). `octave` is the internal index (0 = first octave).
+fn refine(
+    ss: &ScaleSpace,
+    p: &SiftParams,
+    octave: usize,
+    layer0: usize,
+    r0: usize,
+    c0: usize,
+) -> Option<Refined> {
+    const IMG_SCALE: f32 = 1.0 / 255.0;
+    const DERIV: f32 = IMG_SCALE * 0.5;
+    const SECOND: f32 = IMG_SCALE;
+    const CROSS: f32 = IMG_SCALE * 0.25;
+    let s = ss.layers;
+    let dog = &ss.octaves[octave].dog;
+    let w = dog[0].width as usize;
+    let h = dog[0].height as usize;
+    let (mut layer, mut r, mut c) = (layer0 as i64, r0 as i64, c0 as i64);
+    let (mut xi, mut xr, mut xc) = (0f32, 0f32, 0f32);
+    let mut grad = [0f32; 3];
+    let mut converged = false;
+    for _ in 0..MAX_INTERP_STEPS {
+        let (l, ri, ci) = (layer as usize, r as usize, c as usize);
+        let img = &dog[l].data;
+        let prv = &dog[l - 1].data;
+        let nxt = &dog[l + 1].data;
+        let at = |d: &[f32], y: usize, x: usize| d[y * w + x];
+        grad = [
+            (at(img, ri, ci + 1) - at(img, ri, ci - 1)) * DERIV,
+            (at(img, ri + 1, ci) - at(img, ri - 1, ci)) * DERIV,
+            (at(nxt, ri, ci) - at(prv, ri, ci)) * DERIV,
+        ];
+        let v2 = at(img, ri, ci) * 2.0;
+        let dxx = (at(img, ri, ci + 1) + at(img, ri, ci - 1) - v2) * SECOND;
+        let dyy = (at(img, ri + 1, ci) + at(img, ri - 1, ci) - v2) * SECOND;
+        let dss = (at(nxt, ri, ci) + at(prv, ri, ci) - v2) * SECOND;
+        let dxy = (at(img, ri + 1, ci + 1) - at(img, ri + 1, ci - 1) - at(img, ri - 1, ci + 1)
+            + at(img, ri - 1, ci - 1))
+            * CROSS;
+        let dxs = (at(nxt, ri, ci + 1) - at(nxt, ri, ci - 1) - at(prv, ri, ci + 1)
+            + at(prv, ri, ci - 1))
+            * CROSS;
+        let dys = (at(nxt, ri + 1, ci) - at(nxt, ri - 1, ci) - at(prv, ri + 1, ci)
+            + at(prv, ri - 1, ci))
+            * CROSS;
+        let hm = nalgebra::Matrix3::new(dxx, dxy, dxs, dxy, dyy, dys, dxs, dys, dss);
+        let x = hm
+            .lu()
+            .solve(&nalgebra::Vector3::new(grad[0], grad[1], grad[2]))?;
+        xc = -x[0];
+        xr = -x[1];
+        xi = -x[2];
+        if !(xc.is_finite() && xr.is_finite() && xi.is_finite()) {
+            return None;
+        }
+        if xi.abs() < 0.5 && xr.abs() < 0.5 && xc.abs() < 0.5 {
+            converged = true;
+            break;
+        }
+        const BIG: f32 = (i32::MAX / 3) as f32;
+        if xi.abs() > BIG || xr.abs() > BIG || xc.abs() > BIG {
+            return None;
+        }
+        c += i64::from(cv_round(xc));
+        r += i64::from(cv_round(xr));
+        layer += i64::from(cv_round(xi));
+        if layer < 1
+            || layer > s as i64
+            || c < IMG_BORDER as i64
+            || c >= (w - IMG_BORDER) as i64
+            || r < IMG_BORDER as i64
+            || r >= (h - IMG_BORDER) as i64
+        {
+            return None;
+        }
+    }
+    if !converged {
+        return None;
+    }
+    let (l, ri, ci) = (layer as usize, r as usize, c as usize);
+    let img = &dog[l].data;
+    let at = |y: usize, x: usize| img[y * w + x];
+    let t = grad[0] * xc + grad[1] * xr + grad[2] * xi;
+    let contr = at(ri, ci) * IMG_SCALE + t * 0.5;
+    if contr.abs() * (s as f32) < p.contrast_threshold as f32 {
+        return None;
+    }
+    let v2 = at(ri, ci) * 2.0;
+    let dxx = (at(ri, ci + 1) + at(ri, ci - 1) - v2) * SECOND;
+    let dyy = (at(ri + 1, ci) + at(ri - 1, ci) - v2) * SECOND;
+    let dxy =
+        (at(ri + 1, ci + 1) - at(ri + 1, ci - 1) - at(ri - 1, ci + 1) + at(ri - 1, ci - 1)) * CROSS;
+    let tr = dxx + dyy;
+    let det = dxx * dyy - dxy * dxy;
+    let et = p.edge_threshold as f32;
+    if det <= 0.0 || tr * tr * et >= (et + 1.0) * (et + 1.0) * det {
+        return None;
+    }
+    // Position and size as OpenCV computes them in the internal octave, then scaled to input
+    // pixels (×0.5 for the up-sampled octave).
+    let mult = (1u64 << octave) as f32;
+    let mut x = (ci as f32 + xc) * mult;
+    let mut y = (ri as f32 + xr) * mult;
+    let mut size = (p.sigma as f32) * 2f32.powf((l as f32 + xi) / s as f32) * mult * 2.0;
+    if ss.first_octave < 0 {
+        let scale = 0.5f32.powi(-ss.first_octave);
+        x *= scale;
+        y *= scale;
+        size *= scale;
+    }
+    Some(Refined {
+        octave,
+        layer: l,
+        r: ri,
+        c: ci,
+        kp: Keypoint {
+            x,
+            y,
+            sigma: size * 0.5,
+            angle_deg: 0.0,
+            response: contr.abs(),
+            octave: octave as i32 + ss.first_octave,
+            layer: l as i32,
+            layer_offset: xi,
+        },
+    })
+}
+
+/// The smoothed 36-bin orientation histogram around (c, r) (OpenCV's `calcOrientationHist`);
+/// returns its maximum.
+fn orientation_hist(
+    img: &Plane<f32>,
+    r0: usize,
+    c0: usize,
+    radius: i32,
+    sigma: f32,
+    hist: &mut [f32; ORI_HIST_BINS],
+) -> f32 {
+    let w = img.width as i32;
+    let h = img.height as i32;
+    let n = ORI_HIST_BINS;
+    let expf_scale = -1.0 / (2.0 * sigma * sigma);
+    let mut raw = [0f32; ORI_HIST_BINS];
+    let d = &img.data;
+    for i in -radius..=radius {
+        let y = r0 as i32 + i;
+        if y <= 0 || y >= h - 1 {
+            continue;
+        }
+        for j in -radius..=radius {
+            let x = c0 as i32 + j;
+            if x <= 0 || x >= w - 1 {
+                continue;
+            }
+            let idx = (y * w + x) as usize;
+            let dx = d[idx + 1] - d[idx - 1];
+            let dy = d[idx - w as usize] - d[idx + w as usize];
+            let wgt = (((i * i + j * j) as f32) * expf_scale).exp();
+            let ori = fast_atan2(dy, dx);
+            let mag = (dx * dx + dy * dy).sqrt();
+            let mut bin = cv_round((n as f32 / 360.0) * ori);
+            if bin >= n as i32 {
+                bin -= n as i32;
+            }
+            if bin < 0 {
+                bin += n as i32;
+            }
+            raw[bin as usize] += wgt * mag;
+        }
+    }
+    let mut maxval = 0f32;
+    for i in 0..n {
+        let at = |k: isize| raw[k.rem_euclid(n as isize) as usize];
+        let ii = i as isize;
+        hist[i] = (at(ii - 2) + at(ii + 2)) * (1.0 / 16.0)
+            + (at(ii - 1) + at(ii + 1)) * (4.0 / 16.0)
+            + raw[i] * (6.0 / 16.0);
+        maxval = maxval.max(hist[i]);
+    }
+    maxval
+}
+
+/// The keypoints (one per orientation peak) of a refined extremum.
+fn orient(ss: &ScaleSpace, rf: &Refined, out: &mut Vec<Keypoint>) {
+    let n = ORI_HIST_BINS;
+    let img = &ss.octaves[rf.octave].gauss[rf.layer];
+    // σ in octave pixels: size·0.5 / 2^octave with the internal octave index.
+    let scl_octv = rf.kp.sigma * 2f32.powi(-(rf.kp.octave));
+    let mut hist = [0f32; ORI_HIST_BINS];
+    let omax = orientation_hist(
+        img,
+        rf.r,
+        rf.c,
+        cv_round(ORI_RADIUS * scl_octv),
+        ORI_SIG_FCTR * scl_octv,
+        &mut hist,
+    );
+    let mag_thr = omax * ORI_PEAK_RATIO;
+    for j in 0..n {
+        let l = if j > 0 { j - 1 } else { n - 1 };
+        let r2 = if j < n - 1 { j + 1 } else { 0 };
+        if hist[j] > hist[l] && hist[j] > hist[r2] && hist[j] >= mag_thr {
+            let mut bin =
+                j as f32 + 0.5 * (hist[l] - hist[r2]) / (hist[l] - 2.0 * hist[j] + hist[r2]);
+            if bin < 0.0 {
+                bin += n as f32;
+            } else if bin >= n as f32 {
+                bin -= n as f32;
+            }
+            let mut angle = 360.0 - (360.0 / n as f32) * bin;
+            if (angle - 360.0).abs() < f32::EPSILON {
+                angle = 0.0;
+            }
+            out.push(Keypoint {
+                angle_deg: angle,
+                ..rf.kp
+            });
+        }
+    }
+}
+
+fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
+    let s = ss.layers;
+    // OpenCV's pre-threshold in 0..255 units, floored to an integer (spec 004 §4.3).
+    let thr = (0.5 * p.contrast_threshold / s as f64 * 255.0).floor() as f32;
+    let mut cands: Vec<(usize, usize, usize, usize)> = Vec::new();
+    for (o, oct) in ss.octaves.iter().enumerate() {
+        let w = oct.dog[0].width as usize;
+        let h = oct.dog[0].height as usize;
+        if w <= 2 * IMG_BORDER || h <= 2 * IMG_BORDER {
+            continue;
+        }
+        for layer in 1..=s {
+            let scan_row = |r: usize| -> Vec<(usize, usize, usize, usize)> {
+                (IMG_BORDER..w - IMG_BORDER)
+                    .filter(|&c| is_extremum(&oct.dog, layer, r, c, w, thr))
+                    .map(|c| (o, layer, r, c))
+                    .collect()
+            };
+            #[cfg(feature = "parallel")]
+            let rows: Vec<Vec<_>> = (IMG_BORDER..h - IMG_BORDER)
+                .into_par_iter()
+                .with_min_len(8)
+                .map(scan_row)
+                .collect();
+            #[cfg(not(feature = "parallel"))]
+            let rows: Vec<Vec<_>> = (IMG_BORDER..h - IMG_BORDER).map(scan_row).collect();
+            cands.extend(rows.into_iter().flatten());
+        }
+    }
+    let run = |&(o, layer, r, c): &(usize, usize, usize, usize)| -> Vec<Keypoint> {
+        let mut out = Vec::new();
+        if let Some(rf) = refine(ss, p, o, layer, r, c) {
+            orient(ss, &rf, &mut out);
+        }
+        out
+    };
+    #[cfg(feature = "parallel")]
+    let per: Vec<Vec<Keypoint>> = cands.par_iter().with_min_len(32).map(run).collect();
+    #[cfg(not(feature = "parallel"))]
+    let per: Vec<Vec<Keypoint>> = cands.iter().map(run).collect();
+    per.into_iter().flatten().collect()
+}
+
+fn kp_cmp(a: &Keypoint, b: &Keypoint) -> std::cmp::Ordering {
+    a.x.total_cmp(&b.x)
+        .then(a.y.total_cmp(&b.y))
+        .then(b.sigma.total_cmp(&a.sigma))
+        .then(a.angle_deg.total_cmp(&b.angle_deg))
+        .then(b.response.total_cmp(&a.response))
+        .then(a.octave.cmp(&b.octave))
+        .then(a.layer.cmp(&b.layer))
+        .then(a.layer_offset.total_cmp(&b.layer_offset))
+}
+
+/// Sorts keypoints and removes those with the same position, size and angle as the previous one.
+fn sort_dedup(kps: &mut Vec<Keypoint>) {
+    kps.sort_by(kp_cmp);
+    kps.dedup_by(|b, a| {
+        a.x == b.x && a.y == b.y && a.sigma == b.sigma && a.angle_deg == b.angle_deg
+    });
+}
+
+/// Keeps the `n` strongest keypoints (ties at the cut kept, as OpenCV's `retainBest`), in the
+/// sorted order.
+fn retain_best(kps: &mut Vec<Keypoint>, n: usize) {
+    let mut resp: Vec<f32> = kps.iter().map(|k| k.response).collect();
+    resp.sort_by(|a, b| b.total_cmp(a));
+    let cut = resp[n - 1];
+    kps.retain(|k| k.response >= cut);
+}
+
+type DescriptorJob = (usize, usize, f32, f32, f32, f32);
+
+/// Where and how to compute the descriptor of `kp`: (internal octave, layer, x, y in octave
+/// pixels, y-up orientation in degrees, σ in octave pixels).
+fn descriptor_job(ss: &ScaleSpace, kp: &Keypoint) -> Result<DescriptorJob, VisionError> {
+    let finite =
+        kp.x.is_finite() && kp.y.is_finite() && kp.sigma.is_finite() && kp.angle_deg.is_finite();
+    if !finite || kp.sigma <= 0.0 {
+        return Err(VisionError::NonFinite("keypoint (x, y, sigma, angle)"));
+    }
+    let o = kp.octave - ss.first_octave;
+    if o < 0 || o as usize >= ss.octaves.len() {
+        return Err(CoreError::invalid(
+            "keypoint octave",
+            format!(
+                "{} outside the scale space's octaves {}..{}",
+                kp.octave,
+                ss.first_octave,
+                ss.first_octave + ss.octaves.len() as i32
+            ),
+        )
+        .into());
+    }
+    if kp.layer < 0 || kp.layer as usize >= ss.layers + 3 {
+        return Err(CoreError::invalid(
+            "keypoint layer",
+            format!("{} outside 0..{}", kp.layer, ss.layers + 3),
+        )
+        .into());
+    }
+    let scale = 2f32.powi(-kp.octave);
+    let mut ori = 360.0 - kp.angle_deg;
+    if (ori - 360.0).abs() < f32::EPSILON {
+        ori = 0.0;
+    }
+    let x = kp.x * scale;
+    let y = kp.y * scale;
+    if x.abs() > 1e7 || y.abs() > 1e7 {
+        return Err(CoreError::invalid("keypoint position", "far outside the image").into());
+    }
+    Ok((
+        o as usize,
+        kp.layer as usize,
+        x,
+        y,
+        ori,
+        kp.sigma * 2.0 * scale * 0.5,
+    ))
+}
+
+/// The raw 128-bin histogram (OpenCV's `calcSIFTDescriptor` before normalisation).
+fn raw_descriptor(
+    img: &Plane<f32>,
+    ptx: f32,
+    pty: f32,
+    ori: f32,
+    scl: f32,
+) -> [f32; DESCRIPTOR_LEN] {
+    const D: usize = DESCR_WIDTH;
+    const N: usize = DESCR_HIST_BINS;
+    let px = cv_round(ptx);
+    let py = cv_round(pty);
+    let rad = ori * (std::f32::consts::PI / 180.0);
+    let mut cos_t = rad.cos();
+    let mut sin_t = rad.sin();
+    let bins_per_rad = N as f32 / 360.0;
+    let exp_scale = -1.0 / (D as f32 * D as f32 * 0.5);
+    let hist_width = DESCR_SCL_FCTR * scl;
+    let rows = img.height as i32;
+    let cols = img.width as i32;
+    let diag =
+        (f64::from(cols) * f64::from(cols) + f64::from(rows) * f64::from(rows)).sqrt() as i32;
+    let radius = cv_round(hist_width * std::f32::consts::SQRT_2 * (D as f32 + 1.0) * 0.5).min(diag);
+    cos_t /= hist_width;
+    sin_t /= hist_width;
+    let mut hist = [0f32; (D + 2) * (D + 2) * (N + 2)];
+    let data = &img.data;
+    let half = D as f32 / 2.0 - 0.5;
+    for i in -radius..=radius {
+        let r = py + i;
+        if r <= 0 || r >= rows - 1 {
+            continue;
+        }
+        for j in -radius..=radius {
+            let c = px + j;
+            if c <= 0 || c >= cols - 1 {
+                continue;
+            }
+            let (fi, fj) = (i as f32, j as f32);
+            let c_rot = fj * cos_t - fi * sin_t;
+            let r_rot = fj * sin_t + fi * cos_t;
+            let rbin = r_rot + half;
+            let cbin = c_rot + half;
+            if !(rbin > -1.0 && rbin < D as f32 && cbin > -1.0 && cbin < D as f32) {
+                continue;
+            }
+            let idx = (r * cols + c) as usize;
+            let dx = data[idx + 1] - data[idx - 1];
+            let dy = data[idx - cols as usize] - data[idx + cols as usize];
+            let wgt = ((c_rot * c_rot + r_rot * r_rot) * exp_scale).exp();
+            let ang = fast_atan2(dy, dx);
+            let mag = (dx * dx + dy * dy).sqrt() * wgt;
+            let obin = (ang - ori) * bins_per_rad;
+            let r0 = rbin.floor();
+            let c0 = cbin.floor();
+            let o0f = obin.floor();
+            let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
+            let (r0, c0) = (r0 as i32, c0 as i32);
+            let mut o0 = o0f as i32;
+            if o0 < 0 {
+                o0 += N as i32;
+            }
+            if o0 >= N as i32 {
+                o0 -= N as i32;
+            }
+            let v_r1 = mag * rf;
+            let v_r0 = mag - v_r1;
+            let v_rc11 = v_r1 * cf;
+            let v_rc10 = v_r1 - v_rc11;
+            let v_rc01 = v_r0 * cf;
+            let v_rc00 = v_r0 - v_rc01;
+            let v_rco111 = v_rc11 * of;
+            let v_rco110 = v_rc11 - v_rco111;
+            let v_rco101 = v_rc10 * of;
+            let v_rco100 = v_rc10 - v_rco101;
+            let v_rco011 = v_rc01 * of;
+            let v_rco010 = v_rc01 - v_rco011;
+            let v_rco001 = v_rc00 * of;
+            let v_rco000 = v_rc00 - v_rco001;
+            let idx = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
+            let rs = (D + 2) * (N + 2);
+            hist[idx] += v_rco000;
+            hist[idx + 1] += v_rco001;
+            hist[idx + N + 2] += v_rco010;
+            hist[idx + N + 3] += v_rco011;
+            hist[idx + rs] += v_rco100;
+            hist[idx + rs + 1] += v_rco101;
+            hist[idx + rs + N + 2] += v_rco110;
+            hist[idx + rs + N + 3] += v_rco111;
+        }
+    }
+    let mut dst = [0f32; DESCRIPTOR_LEN];
+    for i in 0..D {
+        for j in 0..D {
+            let idx = ((i + 1) * (D + 2) + (j + 1)) * (N + 2);
+            hist[idx] += hist[idx + N];
+            hist[idx + 1] += hist[idx + N + 1];
+            dst[(i * D + j) * N..(i * D + j + 1) * N].copy_from_slice(&hist[idx..idx + N]);
+        }
+    }
+    dst
+}
+
+/// Clamps every element at 0.2·‖v‖₂ and renormalises to unit L2 norm (a zero vector stays
+/// zero).
+pub fn normalize_descriptor(v: &mut [f32; DESCRIPTOR_LEN]) {
+    let nrm = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+    let thr = nrm * DESCR_MAG_THR;
+    let mut nrm2 = 0f32;
+    for x in v.iter_mut() {
+        *x = x.min(thr);
+        nrm2 += *x * *x;
+    }
+    let inv = 1.0 / nrm2.sqrt().max(f32::EPSILON);
+    for x in v.iter_mut() {
+        *x *= inv;
+    }
+}
+
+/// Quantises a unit-norm descriptor: `saturate_u8(round(512·v))` (OpenCV's output).
+pub fn quantize(v: &[f32; DESCRIPTOR_LEN]) -> SiftDescriptor {
+    let mut q = [0u8; DESCRIPTOR_LEN];
+    for (o, &x) in q.iter_mut().zip(v) {
+        *o = (x * INT_DESCR_FCTR).round_ties_even().clamp(0.0, 255.0) as u8;
+    }
+    q
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_atan2_matches_atan2() {
+        for k in 0..3600 {
+            let a = (k as f32) * 0.1f32.to_radians();
+            let (y, x) = (a.sin() * 3.0, a.cos() * 3.0);
+            let got = fast_atan2(y, x);
+            let want = y.atan2(x).to_degrees().rem_euclid(360.0);
+            let diff = (got - want).abs().min(360.0 - (got - want).abs());
+            assert!(diff < 0.02, "{k}: {got} vs {want}");
+        }
+        assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn upsample_is_centre_aligned() {
+        let src = Plane::from_vec(2, 1, vec![0.0f32, 4.0]).unwrap();
+        let up = upsample2(&src);
+        assert_eq!((up.width, up.height), (4, 2));
+        assert_eq!(&up.data[..4], &[0.0, 1.0, 3.0, 4.0]);
+    }
+
+    #[test]
+    fn downsample_takes_even_pixels() {
+        let src = Plane::from_fn(5, 5, |x, y| (x + 10 * y) as f32);
+        let d = downsample2(&src);
+        assert_eq!((d.width, d.height), (2, 2));
+        assert_eq!(d.data, vec![0.0, 2.0, 20.0, 22.0]);
+    }
+
+    #[test]
+    fn normalisation_gives_unit_norm_and_clamps() {
+        let mut v = [0f32; DESCRIPTOR_LEN];
+        v[0] = 10.0;
+        v[1] = 1.0;
+        v[2] = 1.0;
+        normalize_descriptor(&mut v);
+        let n: f32 = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+        assert!((n - 1.0).abs() < 1e-6);
+        // The large element was clamped to 0.2 of the norm before renormalising.
+        assert!((v[0] / v[1] - 0.2 * (102f32).sqrt()).abs() < 1e-4);
+        let q = quantize(&v);
+        assert!(q[0] > q[1]);
+    }
+
+    #[test]
+    fn bad_params_are_rejected() {
+        let p = SiftParams {
+            sigma: f64::NAN,
+            ..SiftParams::default()
+        };
+        assert!(Sift::new(p).is_err());
+        let p = SiftParams {
+            n_octave_layers: 0,
+            ..SiftParams::default()
+        };
+        assert!(Sift::new(p).is_err());
+    }
+}
