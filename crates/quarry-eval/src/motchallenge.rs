@@ -1,0 +1,412 @@
+//! The MOTChallenge text format: one object per line,
+//! `frame,id,left,top,width,height,conf,x,y,z` (comma-separated, frames 1-based, boxes in pixels).
+//!
+//! Lines with 6 to 10 columns are accepted; the meaning of columns 7-10 depends on the file:
+//! - results (all 2D MOT tasks): `conf, x, y, z` (world coordinates, -1 when unused);
+//! - ground truth, 2D MOT 2015 style (10 columns): `flag, x, y, z`;
+//! - ground truth, MOT16/17/20 style (9 columns): `flag (consider 0|1), class, visibility`.
+//!
+//! Blank lines and lines starting with `#` are skipped; fields may be padded with spaces.
+//! A malformed line is an [`EvalError::Parse`] naming its 1-based line number; nothing here
+//! panics on any input (the `motchallenge_reader` fuzz target checks that).
+//!
+//! [`to_frames`] turns ground truth and results into [`Frame`]s for [`crate::mot`], dropping
+//! ignored ground truth the MOTChallenge way (spec 004 §5.4).
+//!
+//! ```
+//! use quarry_eval::motchallenge::{read_gt, read_results, to_frames, write_results, GtStyle};
+//! let gt = read_gt("1,1,10,20,30,60,1,1,1.0\n2,1,12,20,30,60,1,1,0.8\n", GtStyle::Auto)?;
+//! let res = read_results("1,5,11,20,30,60,0.9,-1,-1,-1\n2,5,12,21,30,60,0.9,-1,-1,-1\n")?;
+//! assert_eq!(gt[1].visibility, Some(0.8));
+//! let frames = to_frames(&gt, &res, 0.5)?;
+//! assert_eq!(frames.len(), 2);
+//! let mut out = Vec::new();
+//! write_results(&mut out, &res)?;
+//! assert!(String::from_utf8(out).unwrap().starts_with("1,5,11,20,30,60,0.9,-1,-1,-1"));
+//! # Ok::<(), quarry_eval::EvalError>(())
+//! ```
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+
+use crate::EvalError;
+use crate::lsap::linear_sum_assignment;
+use crate::mot::Frame;
+use crate::similarity::{Ltwh, iou_ltwh};
+
+/// One line of a MOTChallenge file, columns as numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotRow {
+    /// 1-based frame number.
+    pub frame: u64,
+    /// Object or track id (-1 for untracked detections).
+    pub id: i64,
+    /// `[left, top, width, height]`, pixels.
+    pub bbox: Ltwh,
+    /// Column 7 (confidence in results, flag in ground truth); 1 when absent.
+    pub conf: f64,
+    /// Columns 8-10 where present (world x, y, z, or class and visibility in MOT16+ GT).
+    pub extra: [Option<f64>; 3],
+}
+
+/// A ground-truth line, interpreted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GtRow {
+    /// 1-based frame number.
+    pub frame: u64,
+    /// Object id.
+    pub id: i64,
+    /// `[left, top, width, height]`, pixels.
+    pub bbox: Ltwh,
+    /// The flag column: `false` (flag 0) means "ignore this object".
+    pub consider: bool,
+    /// MOT16+ class (1 = pedestrian); `None` in MOT15-style files.
+    pub class: Option<i64>,
+    /// MOT16+ visibility ratio in `[0, 1]`; `None` in MOT15-style files.
+    pub visibility: Option<f64>,
+}
+
+/// Which ground-truth layout a file uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GtStyle {
+    /// 9 columns mean MOT16+, anything else MOT15 (flag, then world coordinates).
+    #[default]
+    Auto,
+    /// `flag, x, y, z` after the box.
+    Mot15,
+    /// `flag, class, visibility` after the box.
+    Mot16,
+}
+
+/// MOT16/17/20 classes whose matched results are dropped rather than counted as false
+/// positives (TrackEval's distractor classes: person on vehicle, static person, distractor,
+/// reflection, non-MOT vehicle).
+pub const DISTRACTOR_CLASSES: [i64; 5] = [2, 6, 7, 8, 12];
+
+fn parse_num(field: &str, line: usize, col: usize) -> Result<f64, EvalError> {
+    let t = field.trim();
+    let v: f64 = t
+        .parse()
+        .map_err(|_| EvalError::parse(line, format!("column {col}: {t:?} is not a number")))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(EvalError::parse(
+            line,
+            format!("column {col}: {t:?} is not finite"),
+        ))
+    }
+}
+
+fn parse_int(field: &str, line: usize, col: usize, name: &str) -> Result<i64, EvalError> {
+    let v = parse_num(field, line, col)?;
+    if v.fract() != 0.0 || v.abs() > 9.0e15 {
+        return Err(EvalError::parse(
+            line,
+            format!(
+                "column {col} ({name}): {:?} is not an integer",
+                field.trim()
+            ),
+        ));
+    }
+    Ok(v as i64)
+}
+
+/// Parses MOTChallenge text into raw rows (6 to 10 columns per line).
+pub fn parse_rows(text: &str) -> Result<Vec<MotRow>, EvalError> {
+    let mut rows = Vec::new();
+    for (k, raw) in text.lines().enumerate() {
+        let line = k + 1;
+        let l = raw.trim();
+        if l.is_empty() || l.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = l.split(',').collect();
+        let n = fields.len();
+        if !(6..=10).contains(&n) {
+            return Err(EvalError::parse(
+                line,
+                format!("expected 6 to 10 comma-separated columns, found {n}"),
+            ));
+        }
+        let frame = parse_int(fields[0], line, 1, "frame")?;
+        if frame < 1 {
+            return Err(EvalError::parse(
+                line,
+                format!("column 1 (frame): frames are 1-based, got {frame}"),
+            ));
+        }
+        let id = parse_int(fields[1], line, 2, "id")?;
+        let mut bbox = [0.0; 4];
+        for (c, b) in bbox.iter_mut().enumerate() {
+            *b = parse_num(fields[2 + c], line, 3 + c)?;
+        }
+        if bbox[2] < 0.0 || bbox[3] < 0.0 {
+            return Err(EvalError::parse(
+                line,
+                format!("negative box size {} x {}", bbox[2], bbox[3]),
+            ));
+        }
+        let conf = if n > 6 {
+            parse_num(fields[6], line, 7)?
+        } else {
+            1.0
+        };
+        let mut extra = [None; 3];
+        for (c, e) in extra.iter_mut().enumerate() {
+            if n > 7 + c {
+                *e = Some(parse_num(fields[7 + c], line, 8 + c)?);
+            }
+        }
+        rows.push(MotRow {
+            frame: frame as u64,
+            id,
+            bbox,
+            conf,
+            extra,
+        });
+    }
+    Ok(rows)
+}
+
+/// Parses raw bytes (must be UTF-8) into rows; the entry point the fuzz target exercises.
+pub fn parse_bytes(bytes: &[u8]) -> Result<Vec<MotRow>, EvalError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let line = String::from_utf8_lossy(&bytes[..e.valid_up_to()])
+            .matches('\n')
+            .count()
+            + 1;
+        EvalError::parse(line, "not valid UTF-8 text")
+    })?;
+    parse_rows(text)
+}
+
+/// Reads a tracker result file's text (`frame,id,l,t,w,h,conf[,x,y,z]`).
+pub fn read_results(text: &str) -> Result<Vec<MotRow>, EvalError> {
+    parse_rows(text)
+}
+
+/// Reads ground-truth text in the given style.
+pub fn read_gt(text: &str, style: GtStyle) -> Result<Vec<GtRow>, EvalError> {
+    let mut out = Vec::new();
+    let mut line_of_row = Vec::new();
+    // keep line numbers for error messages about the interpreted columns
+    for (k, raw) in text.lines().enumerate() {
+        let l = raw.trim();
+        if !(l.is_empty() || l.starts_with('#')) {
+            line_of_row.push((k + 1, l.split(',').count()));
+        }
+    }
+    let rows = parse_rows(text)?;
+    for (row, &(line, ncols)) in rows.iter().zip(&line_of_row) {
+        let mot16 = match style {
+            GtStyle::Auto => ncols == 9,
+            GtStyle::Mot15 => false,
+            GtStyle::Mot16 => true,
+        };
+        let (class, visibility) = if mot16 {
+            let class = match row.extra[0] {
+                Some(c) if c.fract() == 0.0 => Some(c as i64),
+                Some(c) => {
+                    return Err(EvalError::parse(
+                        line,
+                        format!("column 8 (class): {c} is not an integer"),
+                    ));
+                }
+                None => None,
+            };
+            if let Some(v) = row.extra[1]
+                && !(0.0..=1.0).contains(&v)
+            {
+                return Err(EvalError::parse(
+                    line,
+                    format!("column 9 (visibility): {v} is outside [0, 1]"),
+                ));
+            }
+            (class, row.extra[1])
+        } else {
+            (None, None)
+        };
+        out.push(GtRow {
+            frame: row.frame,
+            id: row.id,
+            bbox: row.bbox,
+            consider: row.conf != 0.0,
+            class,
+            visibility,
+        });
+    }
+    Ok(out)
+}
+
+fn read_file(path: &Path) -> Result<String, EvalError> {
+    std::fs::read(path)
+        .map_err(|source| EvalError::Io {
+            path: path.display().to_string(),
+            source,
+        })
+        .and_then(|b| {
+            String::from_utf8(b).map_err(|_| EvalError::parse(1, "file is not UTF-8 text"))
+        })
+}
+
+/// Reads a ground-truth file.
+pub fn read_gt_file(path: impl AsRef<Path>, style: GtStyle) -> Result<Vec<GtRow>, EvalError> {
+    read_gt(&read_file(path.as_ref())?, style)
+}
+
+/// Reads a result file.
+pub fn read_results_file(path: impl AsRef<Path>) -> Result<Vec<MotRow>, EvalError> {
+    read_results(&read_file(path.as_ref())?)
+}
+
+/// Writes rows as MOTChallenge results: always 10 columns, missing world coordinates as -1.
+pub fn write_results<W: Write>(mut w: W, rows: &[MotRow]) -> Result<(), EvalError> {
+    let io = |source| EvalError::Io {
+        path: "<writer>".into(),
+        source,
+    };
+    for r in rows {
+        let [l, t, bw, bh] = r.bbox;
+        let x = r.extra.map(|e| e.unwrap_or(-1.0));
+        writeln!(
+            w,
+            "{},{},{},{},{},{},{},{},{},{}",
+            r.frame, r.id, l, t, bw, bh, r.conf, x[0], x[1], x[2]
+        )
+        .map_err(io)?;
+    }
+    w.flush().map_err(io)
+}
+
+/// Builds per-frame [`Frame`]s (boxes) from ground truth and results, ordered by frame number
+/// over every frame that appears in either file.
+///
+/// Ignored ground truth is handled as spec 004 §5.4 (after TrackEval's MOTChallenge
+/// preprocessing) resolves it: a ground-truth row is *ignored* when its flag is 0 or its class
+/// is one of [`DISTRACTOR_CLASSES`]. In each frame the results are matched to all ground truth
+/// (optimal assignment maximising IoU among pairs with IoU >= `iou_threshold`); results matched
+/// to an ignored row are dropped (neither TP nor FP), and ignored rows are removed. Rows of any
+/// other non-pedestrian class are removed from the ground truth (results on them count as FP),
+/// as TrackEval does. MOT15-style files have no class, so only the flag applies.
+pub fn to_frames(
+    gt: &[GtRow],
+    res: &[MotRow],
+    iou_threshold: f64,
+) -> Result<Vec<Frame<Ltwh>>, EvalError> {
+    let mut by_frame: BTreeMap<u64, (Vec<&GtRow>, Vec<&MotRow>)> = BTreeMap::new();
+    for g in gt {
+        by_frame.entry(g.frame).or_default().0.push(g);
+    }
+    for r in res {
+        by_frame.entry(r.frame).or_default().1.push(r);
+    }
+    let mut frames = Vec::with_capacity(by_frame.len());
+    for (gts, rs) in by_frame.values() {
+        let ignored: Vec<bool> = gts
+            .iter()
+            .map(|g| !g.consider || g.class.is_some_and(|c| DISTRACTOR_CLASSES.contains(&c)))
+            .collect();
+        let mut drop_res = vec![false; rs.len()];
+        if ignored.iter().any(|&x| x) && !rs.is_empty() {
+            let (no, nh) = (gts.len(), rs.len());
+            let mut score = vec![0.0; no * nh];
+            for i in 0..no {
+                for j in 0..nh {
+                    let s = iou_ltwh(&gts[i].bbox, &rs[j].bbox);
+                    score[i * nh + j] = if s < iou_threshold - f64::EPSILON {
+                        0.0
+                    } else {
+                        -s
+                    };
+                }
+            }
+            for (i, j) in linear_sum_assignment(&score, no, nh)? {
+                if -score[i * nh + j] > f64::EPSILON && ignored[i] {
+                    drop_res[j] = true;
+                }
+            }
+        }
+        frames.push(Frame {
+            gt: gts
+                .iter()
+                .zip(&ignored)
+                .filter(|(g, ign)| !**ign && g.class.is_none_or(|c| c == 1))
+                .map(|(g, _)| (g.id, g.bbox))
+                .collect(),
+            hyp: rs
+                .iter()
+                .zip(&drop_res)
+                .filter(|(_, d)| !**d)
+                .map(|(r, _)| (r.id, r.bbox))
+                .collect(),
+        });
+    }
+    Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_name_the_line() {
+        let e = parse_rows("1,1,0,0,1,1\n\n2,x,0,0,1,1\n").unwrap_err();
+        assert_eq!(e.to_string(), "line 3: column 2: \"x\" is not a number");
+        let e = parse_rows("1,1,0,0,1\n").unwrap_err();
+        assert!(e.to_string().starts_with("line 1: expected 6 to 10"));
+        let e = parse_rows("0,1,0,0,1,1\n").unwrap_err();
+        assert!(e.to_string().contains("1-based"));
+        let e = parse_rows("1,1,0,0,-1,1\n").unwrap_err();
+        assert!(e.to_string().contains("negative box size"));
+        let e = parse_rows("1,1.5,0,0,1,1\n").unwrap_err();
+        assert!(e.to_string().contains("not an integer"));
+        let e = parse_rows("1,1,0,0,nan,1\n").unwrap_err();
+        assert!(e.to_string().contains("not finite"));
+        assert_eq!(
+            parse_bytes(b"1,1,0,0,1,1\n\xff").unwrap_err().to_string(),
+            "line 2: not valid UTF-8 text"
+        );
+        assert!(read_gt("1,1,0,0,1,1,1,1,1.5\n", GtStyle::Auto).is_err());
+    }
+
+    #[test]
+    fn columns_and_styles() {
+        let r = parse_rows(" 3 , 7 , 1.5, 2, 3, 4 \n# c\n4,7,1,2,3,4,0.5,9\n").unwrap();
+        assert_eq!(r.len(), 2);
+        assert_eq!(r[0].frame, 3);
+        assert_eq!(r[0].bbox, [1.5, 2.0, 3.0, 4.0]);
+        assert_eq!(r[0].conf, 1.0);
+        assert_eq!(r[1].extra, [Some(9.0), None, None]);
+        let g = read_gt("1,1,0,0,1,1,0,-1,-1,-1\n", GtStyle::Auto).unwrap();
+        assert!(!g[0].consider);
+        assert_eq!(g[0].class, None);
+        let g = read_gt("1,1,0,0,1,1,1,7,0.25\n", GtStyle::Auto).unwrap();
+        assert_eq!((g[0].class, g[0].visibility), (Some(7), Some(0.25)));
+    }
+
+    #[test]
+    fn ignored_gt_drops_matched_results() {
+        // object 2 is flagged 0: the result on it vanishes, the result elsewhere stays an FP
+        let gt = read_gt(
+            "1,1,0,0,10,10,1,1,1\n1,2,50,0,10,10,0,1,1\n1,3,100,0,10,10,1,3,1\n",
+            GtStyle::Auto,
+        )
+        .unwrap();
+        let res = read_results("1,7,0,0,10,10,1\n1,8,51,0,10,10,1\n1,9,200,0,10,10,1\n").unwrap();
+        let f = to_frames(&gt, &res, 0.5).unwrap();
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].gt.iter().map(|p| p.0).collect::<Vec<_>>(), vec![1]);
+        assert_eq!(f[0].hyp.iter().map(|p| p.0).collect::<Vec<_>>(), vec![7, 9]);
+    }
+
+    #[test]
+    fn write_then_read_round_trips() {
+        let rows =
+            parse_rows("1,2,1.25,2.5,30,40,0.75,-1,-1,-1\n5,3,0,0,1,1,1,-1,-1,-1\n").unwrap();
+        let mut buf = Vec::new();
+        write_results(&mut buf, &rows).unwrap();
+        assert_eq!(parse_bytes(&buf).unwrap(), rows);
+    }
+}

@@ -1,0 +1,317 @@
+//! Position-error series: RMSE, NEES and the chi-square consistency test of a filter.
+//!
+//! ```
+//! use nalgebra::{Matrix2, Vector2};
+//! use quarry_eval::position::{nees, nees_consistency, position_rmse};
+//!
+//! let truth = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]];
+//! let est = [[0.3, 0.4], [1.0, 0.0], [2.0, 0.0]];
+//! let rmse = position_rmse(&est, &truth)?;
+//! assert!((rmse - (0.25f64 / 3.0).sqrt()).abs() < 1e-12);
+//!
+//! let e = [Vector2::new(0.1, -0.2), Vector2::new(-0.3, 0.1)];
+//! let p = [Matrix2::identity() * 0.04, Matrix2::identity() * 0.04];
+//! let q = nees(&e, &p)?;
+//! assert!((q[0] - 1.25).abs() < 1e-12);
+//! let check = nees_consistency(&q, 2, 0.95)?;
+//! assert!(check.lower < check.mean && check.mean < check.upper && check.consistent);
+//! # Ok::<(), quarry_eval::EvalError>(())
+//! ```
+
+use nalgebra::{SMatrix, SVector};
+use quarry_core::CoreError;
+
+use crate::EvalError;
+
+/// Root mean square of scalar errors (e.g. position error norms), `sqrt(mean(e^2))`.
+pub fn rmse(errors: &[f64]) -> Result<f64, EvalError> {
+    if errors.is_empty() {
+        return Err(CoreError::Empty {
+            what: "error series",
+        }
+        .into());
+    }
+    quarry_core::ensure_finite(errors, "error series")?;
+    Ok((errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt())
+}
+
+/// Euclidean error of each estimate against the truth of the same index.
+pub fn position_errors<const N: usize>(
+    estimates: &[[f64; N]],
+    truth: &[[f64; N]],
+) -> Result<Vec<f64>, EvalError> {
+    quarry_core::ensure_len(estimates.len(), truth.len(), "estimates vs truth")?;
+    if estimates.is_empty() {
+        return Err(CoreError::Empty { what: "estimates" }.into());
+    }
+    quarry_core::ensure_finite(estimates.iter().flatten(), "estimates")?;
+    quarry_core::ensure_finite(truth.iter().flatten(), "truth")?;
+    Ok(estimates
+        .iter()
+        .zip(truth)
+        .map(|(e, t)| {
+            e.iter()
+                .zip(t)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect())
+}
+
+/// Position RMSE `sqrt(mean |est - truth|^2)`.
+pub fn position_rmse<const N: usize>(
+    estimates: &[[f64; N]],
+    truth: &[[f64; N]],
+) -> Result<f64, EvalError> {
+    rmse(&position_errors(estimates, truth)?)
+}
+
+/// Normalised estimation error squared `e^T P^-1 e` of each (error, covariance) pair, where
+/// `e = estimate - truth`. Errors on a covariance that is not symmetric positive definite.
+pub fn nees<const D: usize>(
+    errors: &[SVector<f64, D>],
+    covariances: &[SMatrix<f64, D, D>],
+) -> Result<Vec<f64>, EvalError> {
+    quarry_core::ensure_len(covariances.len(), errors.len(), "covariances vs errors")?;
+    if errors.is_empty() {
+        return Err(CoreError::Empty {
+            what: "error series",
+        }
+        .into());
+    }
+    errors
+        .iter()
+        .zip(covariances)
+        .map(|(e, p)| {
+            quarry_core::ensure_finite(e.iter(), "estimation error")?;
+            quarry_core::validate_covariance(p, "covariance")?;
+            let chol = p
+                .cholesky()
+                .ok_or(CoreError::NotPositiveDefinite { what: "covariance" })?;
+            Ok(e.dot(&chol.solve(e)))
+        })
+        .collect()
+}
+
+/// The outcome of the chi-square NEES consistency test (Bar-Shalom, Li & Kirubarajan 2001,
+/// §5.4): under a consistent filter, the sum of N independent NEES values of dimension d is
+/// chi-square with `N d` degrees of freedom, so the mean NEES lies in
+/// `[chi2_ppf((1-q)/2, N d) / N, chi2_ppf((1+q)/2, N d) / N]` with probability q.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NeesConsistency {
+    /// The mean NEES.
+    pub mean: f64,
+    /// Lower end of the two-sided acceptance interval for the mean.
+    pub lower: f64,
+    /// Upper end of the acceptance interval.
+    pub upper: f64,
+    /// `lower <= mean <= upper`.
+    pub consistent: bool,
+}
+
+/// Chi-square consistency test of a NEES series of state dimension `dim` at two-sided
+/// confidence `confidence` (e.g. 0.95).
+pub fn nees_consistency(
+    nees: &[f64],
+    dim: usize,
+    confidence: f64,
+) -> Result<NeesConsistency, EvalError> {
+    if nees.is_empty() {
+        return Err(CoreError::Empty {
+            what: "NEES series",
+        }
+        .into());
+    }
+    quarry_core::ensure_finite(nees, "NEES series")?;
+    if dim == 0 {
+        return Err(CoreError::invalid("dim", "must be at least 1").into());
+    }
+    if !(confidence > 0.0 && confidence < 1.0) {
+        return Err(CoreError::invalid(
+            "confidence",
+            format!("must lie in (0, 1), got {confidence}"),
+        )
+        .into());
+    }
+    let n = nees.len() as f64;
+    let dof = n * dim as f64;
+    let mean = nees.iter().sum::<f64>() / n;
+    let lower = chi2_quantile((1.0 - confidence) / 2.0, dof)? / n;
+    let upper = chi2_quantile(f64::midpoint(1.0, confidence), dof)? / n;
+    Ok(NeesConsistency {
+        mean,
+        lower,
+        upper,
+        consistent: lower <= mean && mean <= upper,
+    })
+}
+
+/// `ln Gamma(x)` for `x > 0` (Lanczos, g = 7, n = 9; relative error below 1e-14).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        // reflection
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let mut a = G[0];
+    let t = x + 7.5;
+    for (i, g) in G.iter().enumerate().skip(1) {
+        a += g / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// Regularised lower incomplete gamma `P(a, x)`.
+fn gamma_p(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    let lead = a * x.ln() - x - ln_gamma(a);
+    if x < a + 1.0 {
+        // series
+        let mut sum = 1.0 / a;
+        let mut term = sum;
+        let mut ap = a;
+        for _ in 0..10_000 {
+            ap += 1.0;
+            term *= x / ap;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-16 {
+                break;
+            }
+        }
+        (sum.ln() + lead).exp().min(1.0)
+    } else {
+        // continued fraction for Q(a, x) (modified Lentz)
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-16 {
+                break;
+            }
+        }
+        (1.0 - (lead.exp() * h)).max(0.0)
+    }
+}
+
+/// Chi-square cumulative distribution `P(X <= x)` with `dof` degrees of freedom.
+pub fn chi2_cdf(x: f64, dof: f64) -> Result<f64, EvalError> {
+    if !(dof.is_finite() && dof > 0.0) {
+        return Err(CoreError::invalid("dof", format!("must be finite and > 0, got {dof}")).into());
+    }
+    if x.is_nan() {
+        return Err(CoreError::NonFinite { what: "x" }.into());
+    }
+    Ok(gamma_p(dof / 2.0, x.max(0.0) / 2.0))
+}
+
+/// Chi-square quantile (inverse CDF) for probability `p` in (0, 1), by bisection on
+/// [`chi2_cdf`] to full double precision.
+pub fn chi2_quantile(p: f64, dof: f64) -> Result<f64, EvalError> {
+    if !(p > 0.0 && p < 1.0) {
+        return Err(CoreError::invalid("p", format!("must lie in (0, 1), got {p}")).into());
+    }
+    chi2_cdf(0.0, dof)?;
+    let mut lo = 0.0_f64;
+    let mut hi = dof.max(1.0);
+    while gamma_p(dof / 2.0, hi / 2.0) < p {
+        hi *= 2.0;
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if gamma_p(dof / 2.0, mid / 2.0) < p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-15 * hi {
+            break;
+        }
+    }
+    Ok(0.5 * (lo + hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix2, Vector2};
+
+    #[test]
+    fn chi2_matches_scipy() {
+        // scipy.stats.chi2.ppf / cdf (SciPy 1.17)
+        let cases = [
+            (0.95, 2.0, 5.991464547107979),
+            (0.99, 4.0, 13.276704135987622),
+            (0.025, 20.0, 9.590777392264868),
+            (0.975, 20.0, 34.16960690283833),
+            (0.5, 1.0, 0.454936423119572),
+            (0.975, 2000.0, 2125.8423024497756),
+        ];
+        for (p, k, q) in cases {
+            let got = chi2_quantile(p, k).unwrap();
+            assert!(
+                (got - q).abs() < 1e-9 * q,
+                "ppf({p}, {k}) = {got}, want {q}"
+            );
+        }
+        assert!((chi2_cdf(3.0, 3.0).unwrap() - 0.608_374_823_728_911).abs() < 1e-12);
+        assert!(chi2_quantile(1.0, 2.0).is_err());
+        assert!(chi2_cdf(1.0, 0.0).is_err());
+    }
+
+    #[test]
+    fn rmse_and_errors() {
+        assert!((rmse(&[3.0, 4.0]).unwrap() - 12.5f64.sqrt()).abs() < 1e-15);
+        assert!(rmse(&[]).is_err());
+        assert!(rmse(&[f64::NAN]).is_err());
+        assert!(position_rmse(&[[0.0, 0.0]], &[[0.0, 0.0], [1.0, 1.0]]).is_err());
+    }
+
+    #[test]
+    fn nees_rejects_bad_covariance() {
+        let e = [Vector2::new(1.0, 0.0)];
+        assert!(nees(&e, &[Matrix2::new(1.0, 2.0, 2.0, 1.0)]).is_err());
+        assert!(nees(&e, &[Matrix2::new(1.0, 0.5, 0.0, 1.0)]).is_err());
+        let q = nees(&e, &[Matrix2::new(2.0, 0.0, 0.0, 1.0)]).unwrap();
+        assert!((q[0] - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn consistency_flags_overconfident_filter() {
+        let q = vec![8.0; 50]; // 2-D NEES averaging 8: covariance four times too small
+        let c = nees_consistency(&q, 2, 0.95).unwrap();
+        assert!(!c.consistent && c.mean > c.upper);
+        let c = nees_consistency(&[2.0; 50], 2, 0.95).unwrap();
+        assert!(c.consistent);
+        assert!(nees_consistency(&q, 0, 0.95).is_err());
+    }
+}
