@@ -45,7 +45,7 @@
 //!   [`Solver::max_states`] nodes (2¹⁸ by default; in practice up to ~14 mutually gated
 //!   targets with as many detections); larger clusters (or more than 128 tracks) use LBP.
 //!   **LBP tolerance**: on random dense clusters (every pair gated) max |β_LBP − β_exact|
-//!   ≤ 0.3 and mean error ≤ 0.05 (BP is over-confident there); exact on acyclic gating
+//!   ≤ 0.35 and mean error ≤ 0.2 (BP is over-confident there); exact on acyclic gating
 //!   graphs; its ln c is the Bethe lower bound. See [`engine`].
 //! - Track management ([`lifecycle`]): [`lifecycle::MOfN`], [`lifecycle::ExistenceThresholds`],
 //!   [`lifecycle::ReplaceOnGateFailure`], [`lifecycle::TrackState`].
