@@ -31,6 +31,11 @@
 //!   [`ekf::MeasurementPrediction`] for evaluating many measurements against one prediction.
 //! - [`models`]: constant velocity (2-D, 3-D), constant acceleration, unicycle, spec 000's
 //!   bicycle, spec 001's ego-motion model; position and range-bearing measurements.
+//! - [`pda`]: the PDA combined-innovation update with the spread-of-innovations term.
+//! - [`particles`]: log-domain weights, effective sample size, systematic / stratified /
+//!   multinomial / residual resampling.
+//! - [`store`]: per-particle landmark maps, [`store::PersistentStore`] (Arc-shared tree, O(1)
+//!   copy, O(log M) write) and [`store::VecStore`].
 //!
 //! [`Gaussian`]: quarry_core::Gaussian
 //! [`MotionModel`]: quarry_core::MotionModel
@@ -39,6 +44,9 @@
 pub mod ekf;
 mod error;
 pub mod models;
+pub mod particles;
+pub mod pda;
+pub mod store;
 
 pub use ekf::{Ekf, Innovation, UpdateForm};
 pub use error::FilterError;
