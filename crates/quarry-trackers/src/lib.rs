@@ -9,5 +9,6 @@
 //! ```
 
 mod error;
+pub mod slamot;
 
 pub use error::TrackerError;
