@@ -30,8 +30,12 @@
 
 // `!(x > 0.0)` is the NaN-rejecting form of a positivity check, used on purpose throughout
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+// per-beam loops index several parallel arrays by beam number; the index is the clearer form
+#![allow(clippy::needless_range_loop)]
 
+pub mod background;
 pub mod cluster;
+pub mod contour;
 pub mod error;
 pub mod icp;
 pub mod kd;

@@ -1,0 +1,811 @@
+//! The chi-square background model of spec 003 §2.2: per-beam statistical distance (3), χ²₂
+//! static probability (4)–(5), the region constraint (6), and the long-term per-beam background
+//! with the revealed-background rule.
+//!
+//! Per beam n the model keeps a ring buffer of the last `m` readings. For the current point
+//! `p = (x, y)` and the mean `p̄` of the valid window entries (the current reading excluded),
+//! `D² = (p − p̄)ᵀ S⁻¹ (p − p̄)` with `S = diag(σ², σ²)`, and `P = exp(−D²/2)` is the static
+//! probability. A beam is a static *candidate* when `P > P_th = 0.9`; the region constraint then
+//! keeps a candidate static only if its valid neighbours within `δ` in the same scan hold a
+//! strict majority of candidates (an empty neighbourhood keeps it static). σ is a tolerance,
+//! `σ = κ·σ_d(d)` with `κ = 7` (spec §6 A1).
+//!
+//! The long-term background `b_n` (preset `faithful`; off in `literal`) is the median of the
+//! warm-up readings, follows static readings with rate `α_b`, is relearned after `T_relearn` of
+//! continuous static labels away from it, and overrides: a valid reading within
+//! `τ_g(d) = max(0.03, 3σ_d(d))` of `b_n` is static.
+//!
+//! Choices where the spec is silent (documented here and in the report): the override is
+//! applied after the region vote (which uses the preliminary labels only); the relearn rule
+//! also learns `b_n` for beams that had none after warm-up; a scan whose timestamp is earlier
+//! than the previous one is rejected with an error and leaves the model unchanged.
+
+use quarry_core::{BackgroundModel, BeamLabel, CoreError, Point2, PolarScan, ScanGeometry, TimeUs};
+
+use crate::error::Result;
+use crate::kd::KdIndex;
+use crate::scan::{BeamTable, check_scan, sigma_d};
+
+/// The χ²₂ density of eq. (4): `f(x) = ½ exp(−x/2)` for `x ≥ 0` (0 below).
+#[inline]
+pub fn chi2_2dof_pdf(x: f64) -> f64 {
+    if x < 0.0 { 0.0 } else { 0.5 * (-x / 2.0).exp() }
+}
+
+/// The static probability of eq. (5): `P = 1 − ∫₀^{D²} f = exp(−D²/2)`. (Not `1 − exp(−D²/2)`,
+/// which is the χ²₂ CDF, the *dynamic* probability; spec §6 A2.)
+#[inline]
+pub fn static_probability(d2: f64) -> f64 {
+    (-d2 / 2.0).exp()
+}
+
+/// The statistical distance of eq. (3) in its matrix form: `Aᵀ S⁻¹ A` with `A = p − mean` and
+/// `S = diag(σ_x², σ_y²)`.
+#[inline]
+pub fn statistical_distance2(p: &Point2, mean: &Point2, sigma_x: f64, sigma_y: f64) -> f64 {
+    let a = p - mean;
+    let s_inv = nalgebra::Matrix2::new(
+        1.0 / (sigma_x * sigma_x),
+        0.0,
+        0.0,
+        1.0 / (sigma_y * sigma_y),
+    );
+    (a.transpose() * s_inv * a)[(0, 0)]
+}
+
+/// The region constraint (6), one pass over preliminary labels: for each candidate `n`
+/// (`candidate[n]`, which must have a point), count the candidates `n_s` and non-candidates `n_d`
+/// among the *other* valid points within `delta`; it stays static iff `n_s > n_d` or the
+/// neighbourhood is empty. Returns the final static flags (`false` for every non-candidate and
+/// every invalid beam).
+pub fn region_constraint(
+    points: &[Option<Point2>],
+    candidate: &[bool],
+    delta: f64,
+) -> Result<Vec<bool>> {
+    quarry_core::ensure_len(candidate.len(), points.len(), "candidate flags")?;
+    if !(delta.is_finite() && delta >= 0.0) {
+        return Err(CoreError::invalid("delta", "must be finite and >= 0").into());
+    }
+    let beams: Vec<usize> = (0..points.len()).filter(|&n| points[n].is_some()).collect();
+    let pts: Vec<Point2> = beams.iter().filter_map(|&n| points[n]).collect();
+    let index = KdIndex::new(&pts)?;
+    let mut out = vec![false; points.len()];
+    for (k, &n) in beams.iter().enumerate() {
+        if !candidate[n] {
+            continue;
+        }
+        let (mut ns, mut nd) = (0usize, 0usize);
+        for j in index.within(&pts[k], delta) {
+            if j == k {
+                continue;
+            }
+            if candidate[beams[j]] {
+                ns += 1;
+            } else {
+                nd += 1;
+            }
+        }
+        out[n] = (ns + nd == 0) || ns > nd;
+    }
+    Ok(out)
+}
+
+/// How σ is chosen per beam.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SigmaMode {
+    /// `σ = κ·σ_d(d)` (0.07 m up to 10 m, 0.21 m beyond with κ = 7).
+    Datasheet,
+    /// `σ_n = κ·max(floor, sample std of beam n during warm-up)`; the datasheet value is used
+    /// until warm-up ends.
+    Learned {
+        /// Lower bound on the learned std, metres (0.005 in the spec).
+        floor: f64,
+    },
+}
+
+/// Long-term per-beam background (the revealed-background rule, spec §2.2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LongTermConfig {
+    /// Warm-up length in scans (`T_warm` = 5 s = 200 scans at 40 Hz).
+    pub warm_scans: usize,
+    /// A beam needs at least this fraction of valid warm-up readings for a background.
+    pub min_valid_fraction: f64,
+    /// Update rate `α_b`.
+    pub alpha: f64,
+    /// Relearn after this many consecutive static scans away from `b_n` (`T_relearn` = 2 s = 80).
+    pub relearn_scans: u32,
+}
+
+impl Default for LongTermConfig {
+    fn default() -> Self {
+        Self {
+            warm_scans: 200,
+            min_valid_fraction: 0.5,
+            alpha: 0.02,
+            relearn_scans: 80,
+        }
+    }
+}
+
+/// Parameters of [`ChiSquareBackground`] (spec 003 §3). `Default` is the `faithful` preset.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChiSquareConfig {
+    /// Window length `m` (scans).
+    pub window: usize,
+    /// Static-probability threshold `P_th`.
+    pub p_threshold: f64,
+    /// Tolerance factor κ.
+    pub kappa: f64,
+    /// How σ is chosen.
+    pub sigma: SigmaMode,
+    /// Apply the region constraint (6).
+    pub region_constraint: bool,
+    /// Region radius δ, metres.
+    pub region_radius: f64,
+    /// The long-term background; `None` in the `literal` preset.
+    pub long_term: Option<LongTermConfig>,
+}
+
+impl Default for ChiSquareConfig {
+    fn default() -> Self {
+        Self {
+            window: 40,
+            p_threshold: 0.9,
+            kappa: 7.0,
+            sigma: SigmaMode::Datasheet,
+            region_constraint: true,
+            region_radius: 0.30,
+            long_term: Some(LongTermConfig::default()),
+        }
+    }
+}
+
+impl ChiSquareConfig {
+    /// The `literal` preset: no long-term background.
+    pub fn literal() -> Self {
+        Self {
+            long_term: None,
+            ..Self::default()
+        }
+    }
+
+    fn validate(&self) -> Result<()> {
+        if self.window < 2 {
+            return Err(CoreError::invalid("window", "need m >= 2").into());
+        }
+        if !(self.p_threshold > 0.0 && self.p_threshold < 1.0) {
+            return Err(CoreError::invalid("p_threshold", "must be in (0, 1)").into());
+        }
+        if !(self.kappa.is_finite() && self.kappa > 0.0) {
+            return Err(CoreError::invalid("kappa", "must be finite and positive").into());
+        }
+        if !(self.region_radius.is_finite() && self.region_radius >= 0.0) {
+            return Err(CoreError::invalid("region_radius", "must be finite and >= 0").into());
+        }
+        if let SigmaMode::Learned { floor } = self.sigma
+            && !(floor.is_finite() && floor > 0.0)
+        {
+            return Err(CoreError::invalid("sigma floor", "must be finite and positive").into());
+        }
+        if let Some(lt) = self.long_term {
+            if lt.warm_scans == 0 {
+                return Err(CoreError::invalid("warm_scans", "must be >= 1").into());
+            }
+            if !(lt.alpha >= 0.0 && lt.alpha <= 1.0) {
+                return Err(CoreError::invalid("alpha", "must be in [0, 1]").into());
+            }
+            if !(lt.min_valid_fraction >= 0.0 && lt.min_valid_fraction <= 1.0) {
+                return Err(CoreError::invalid("min_valid_fraction", "must be in [0, 1]").into());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Per-scan diagnostics of the last [`ChiSquareBackground::classify`] call.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ScanDiagnostics {
+    /// `D²` per beam (NaN where not computed: invalid beam or too few valid window entries).
+    pub d2: Vec<f64>,
+    /// Preliminary candidate flags.
+    pub candidate: Vec<bool>,
+    /// Beams made static by the long-term override.
+    pub overridden: usize,
+}
+
+/// The chi-square background model; implements [`BackgroundModel`].
+#[derive(Debug, Clone)]
+pub struct ChiSquareBackground {
+    cfg: ChiSquareConfig,
+    table: BeamTable,
+    /// Ring buffer, beam-major: `ring[n * m + k]`, range in mm (0 = invalid).
+    ring: Vec<u16>,
+    sum_mm: Vec<u64>,
+    n_valid: Vec<u32>,
+    head: usize,
+    scans: u64,
+    last_t: Option<TimeUs>,
+    // long-term background
+    warm: Vec<u16>,
+    background: Vec<Option<f64>>,
+    static_run: Vec<u32>,
+    learned_sigma: Option<Vec<f64>>,
+    diag: ScanDiagnostics,
+}
+
+impl ChiSquareBackground {
+    /// A model for scans of `geometry`.
+    pub fn new(geometry: &ScanGeometry, cfg: ChiSquareConfig) -> Result<Self> {
+        cfg.validate()?;
+        let table = BeamTable::new(geometry)?;
+        let n = table.len();
+        let warm_len = cfg.long_term.map_or(0, |lt| lt.warm_scans) * n;
+        Ok(Self {
+            cfg,
+            table,
+            ring: vec![0; n * cfg.window],
+            sum_mm: vec![0; n],
+            n_valid: vec![0; n],
+            head: 0,
+            scans: 0,
+            last_t: None,
+            warm: vec![0; warm_len],
+            background: vec![None; n],
+            static_run: vec![0; n],
+            learned_sigma: None,
+            diag: ScanDiagnostics::default(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ChiSquareConfig {
+        &self.cfg
+    }
+
+    /// Number of scans seen.
+    pub fn scans_seen(&self) -> u64 {
+        self.scans
+    }
+
+    /// True while the long-term background is still being learned (the wire's `BG_WARMING`).
+    pub fn is_warming(&self) -> bool {
+        self.cfg
+            .long_term
+            .is_some_and(|lt| self.scans < lt.warm_scans as u64)
+    }
+
+    /// The long-term background range `b_n` per beam, metres (`None` where unknown).
+    pub fn long_term_background(&self) -> &[Option<f64>] {
+        &self.background
+    }
+
+    /// Diagnostics of the last classified scan.
+    pub fn diagnostics(&self) -> &ScanDiagnostics {
+        &self.diag
+    }
+
+    fn sigma(&self, n: usize, d: f64) -> f64 {
+        match (&self.cfg.sigma, &self.learned_sigma) {
+            (SigmaMode::Learned { .. }, Some(s)) => s[n],
+            _ => self.cfg.kappa * sigma_d(d),
+        }
+    }
+
+    /// Labels every beam of `scan` and updates the model (see the module docs). Errors: wrong
+    /// beam count, or a timestamp earlier than the previous scan's (the model is unchanged).
+    pub fn classify_scan(&mut self, scan: &PolarScan) -> Result<Vec<BeamLabel>> {
+        check_scan(scan, self.table.geometry())?;
+        if let Some(t) = self.last_t
+            && scan.t < t
+        {
+            return Err(CoreError::invalid(
+                "scan.t",
+                format!(
+                    "timestamp {} us is earlier than the previous scan's {} us",
+                    scan.t.0, t.0
+                ),
+            )
+            .into());
+        }
+        let m = self.cfg.window;
+        let n_beams = self.table.len();
+        let ln_th = -2.0 * self.cfg.p_threshold.ln(); // P > P_th  <=>  D² < -2 ln P_th
+        let mut points: Vec<Option<Point2>> = vec![None; n_beams];
+        let mut candidate = vec![false; n_beams];
+        let mut d2s = vec![f64::NAN; n_beams];
+        for n in 0..n_beams {
+            let Some(r) = scan.range_m(n) else { continue };
+            let Some(p) = self.table.point(n, r) else {
+                continue;
+            };
+            points[n] = Some(p);
+            let nv = self.n_valid[n] as usize;
+            if 2 * nv < m {
+                continue; // fewer than m/2 valid: no evidence of static
+            }
+            let mean_r = self.sum_mm[n] as f64 * 1e-3 / nv as f64;
+            let mean = self.table.point(n, mean_r).unwrap_or(p);
+            let s = self.sigma(n, r);
+            let d2 = statistical_distance2(&p, &mean, s, s);
+            d2s[n] = d2;
+            candidate[n] = d2 < ln_th && static_probability(d2) > self.cfg.p_threshold;
+        }
+        let mut is_static = if self.cfg.region_constraint {
+            region_constraint(&points, &candidate, self.cfg.region_radius)?
+        } else {
+            candidate.clone()
+        };
+        let mut overridden = 0;
+        if self.cfg.long_term.is_some() {
+            for n in 0..n_beams {
+                if let (Some(b), Some(r)) = (self.background[n], scan.range_m(n))
+                    && !is_static[n]
+                    && (r - b).abs() <= (3.0 * sigma_d(r)).max(0.03)
+                {
+                    is_static[n] = true;
+                    overridden += 1;
+                }
+            }
+        }
+        let labels: Vec<BeamLabel> = (0..n_beams)
+            .map(|n| match (points[n], is_static[n]) {
+                (None, _) => BeamLabel::Invalid,
+                (Some(_), true) => BeamLabel::Static,
+                (Some(_), false) => BeamLabel::Dynamic,
+            })
+            .collect();
+        self.update_long_term(scan, &is_static);
+        // push the scan into the window
+        for n in 0..n_beams {
+            let slot = n * m + self.head;
+            let old = self.ring[slot];
+            if old != 0 {
+                self.sum_mm[n] -= u64::from(old);
+                self.n_valid[n] -= 1;
+            }
+            let new = if points[n].is_some() {
+                scan.ranges_mm[n]
+            } else {
+                0
+            };
+            self.ring[slot] = new;
+            if new != 0 {
+                self.sum_mm[n] += u64::from(new);
+                self.n_valid[n] += 1;
+            }
+        }
+        self.head = (self.head + 1) % m;
+        self.scans += 1;
+        self.last_t = Some(scan.t);
+        self.diag = ScanDiagnostics {
+            d2: d2s,
+            candidate,
+            overridden,
+        };
+        Ok(labels)
+    }
+
+    fn update_long_term(&mut self, scan: &PolarScan, is_static: &[bool]) {
+        let Some(lt) = self.cfg.long_term else { return };
+        let n_beams = self.table.len();
+        let k = self.scans as usize;
+        if k < lt.warm_scans {
+            for n in 0..n_beams {
+                self.warm[n * lt.warm_scans + k] = if scan.range_m(n).is_some() {
+                    scan.ranges_mm[n]
+                } else {
+                    0
+                };
+            }
+            if k + 1 == lt.warm_scans {
+                self.finish_warm_up(&lt);
+            }
+            return;
+        }
+        let m = self.cfg.window;
+        for n in 0..n_beams {
+            let Some(d) = scan.range_m(n) else {
+                self.static_run[n] = 0;
+                continue;
+            };
+            if !is_static[n] {
+                self.static_run[n] = 0;
+                continue;
+            }
+            let nv = self.n_valid[n] as usize;
+            let mean = (2 * nv >= m).then(|| self.sum_mm[n] as f64 * 1e-3 / nv as f64);
+            match (self.background[n], mean) {
+                (Some(b), Some(mean)) if (mean - b).abs() > (3.0 * sigma_d(mean)).max(0.03) => {
+                    self.static_run[n] += 1;
+                }
+                (None, Some(_)) => self.static_run[n] += 1,
+                _ => self.static_run[n] = 0,
+            }
+            if self.static_run[n] >= lt.relearn_scans
+                && let Some(mean) = mean
+            {
+                self.background[n] = Some(mean);
+                self.static_run[n] = 0;
+            } else if let Some(b) = self.background[n] {
+                self.background[n] = Some((1.0 - lt.alpha) * b + lt.alpha * d);
+            }
+        }
+    }
+
+    fn finish_warm_up(&mut self, lt: &LongTermConfig) {
+        let w = lt.warm_scans;
+        let mut sig = Vec::with_capacity(self.table.len());
+        for n in 0..self.table.len() {
+            let mut v: Vec<u16> = self.warm[n * w..(n + 1) * w]
+                .iter()
+                .copied()
+                .filter(|&x| x != 0)
+                .collect();
+            v.sort_unstable();
+            if !v.is_empty() && v.len() as f64 >= lt.min_valid_fraction * w as f64 {
+                let med = if v.len() % 2 == 1 {
+                    f64::from(v[v.len() / 2])
+                } else {
+                    0.5 * (f64::from(v[v.len() / 2 - 1]) + f64::from(v[v.len() / 2]))
+                };
+                self.background[n] = Some(med * 1e-3);
+            }
+            if let SigmaMode::Learned { floor } = self.cfg.sigma {
+                let std = if v.len() >= 2 {
+                    let mean = v.iter().map(|&x| f64::from(x) * 1e-3).sum::<f64>() / v.len() as f64;
+                    (v.iter()
+                        .map(|&x| (f64::from(x) * 1e-3 - mean).powi(2))
+                        .sum::<f64>()
+                        / (v.len() - 1) as f64)
+                        .sqrt()
+                } else {
+                    0.0
+                };
+                sig.push(self.cfg.kappa * std.max(floor));
+            }
+        }
+        if matches!(self.cfg.sigma, SigmaMode::Learned { .. }) {
+            self.learned_sigma = Some(sig);
+        }
+        self.warm = Vec::new();
+    }
+}
+
+impl BackgroundModel for ChiSquareBackground {
+    fn classify(&mut self, scan: &PolarScan) -> Result<Vec<BeamLabel>, CoreError> {
+        self.classify_scan(scan).map_err(CoreError::from)
+    }
+}
+
+/// The per-beam variance-learned one-sided chi-square test of the peer workload
+/// (`peers/bench_chi2.py`): the window holds the last `m` ranges of each beam; with window mean
+/// `μ` and variance `s² = max(var_ddof1, s_min²)`, a range `r` is foreground iff
+/// `(r − μ)²/s² > threshold` and `r < μ`. Running sums make a test O(beams). This is a common
+/// textbook variant kept for comparison; the paper's model is [`ChiSquareBackground`].
+#[derive(Debug, Clone)]
+pub struct VarianceChi2Test {
+    m: usize,
+    beams: usize,
+    window: Vec<f64>,
+    head: usize,
+    sum: Vec<f64>,
+    sumsq: Vec<f64>,
+    /// Minimum variance `s_min²`.
+    pub min_var: f64,
+    /// Decision threshold on `(r − μ)²/s²` (10.83 = χ²₁(0.999) in the peer).
+    pub threshold: f64,
+}
+
+impl VarianceChi2Test {
+    /// A test whose window is initialised with `initial` (m rows of `beams` ranges, metres).
+    pub fn new(initial: &[Vec<f64>], min_sigma: f64, threshold: f64) -> Result<Self> {
+        let m = initial.len();
+        if m < 2 {
+            return Err(CoreError::invalid("window", "need at least 2 scans").into());
+        }
+        let beams = initial[0].len();
+        let mut window = Vec::with_capacity(m * beams);
+        for row in initial {
+            quarry_core::ensure_len(row.len(), beams, "window scan")?;
+            quarry_core::ensure_finite(row, "window ranges")?;
+            window.extend_from_slice(row);
+        }
+        let mut sum = vec![0.0; beams];
+        let mut sumsq = vec![0.0; beams];
+        for row in initial {
+            for (b, &r) in row.iter().enumerate() {
+                sum[b] += r;
+                sumsq[b] += r * r;
+            }
+        }
+        Ok(Self {
+            m,
+            beams,
+            window,
+            head: 0,
+            sum,
+            sumsq,
+            min_var: min_sigma * min_sigma,
+            threshold,
+        })
+    }
+
+    /// Foreground flags of `ranges` against the current window (does not update it).
+    pub fn test(&self, ranges: &[f64], out: &mut Vec<bool>) -> Result<()> {
+        quarry_core::ensure_len(ranges.len(), self.beams, "scan ranges")?;
+        out.clear();
+        let m = self.m as f64;
+        out.extend(ranges.iter().enumerate().map(|(b, &r)| {
+            let mu = self.sum[b] / m;
+            let var = ((self.sumsq[b] - self.sum[b] * mu) / (m - 1.0)).max(self.min_var);
+            let d = r - mu;
+            d * d / var > self.threshold && d < 0.0
+        }));
+        Ok(())
+    }
+
+    /// Pushes a scan into the window (replacing the oldest).
+    pub fn push(&mut self, ranges: &[f64]) -> Result<()> {
+        quarry_core::ensure_len(ranges.len(), self.beams, "scan ranges")?;
+        quarry_core::ensure_finite(ranges, "scan ranges")?;
+        let row = &mut self.window[self.head * self.beams..(self.head + 1) * self.beams];
+        for (b, (&r, old)) in ranges.iter().zip(row.iter_mut()).enumerate() {
+            self.sum[b] += r - *old;
+            self.sumsq[b] += r * r - *old * *old;
+            *old = r;
+        }
+        self.head = (self.head + 1) % self.m;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use quarry_core::SensorId;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    fn one_beam_geometry() -> ScanGeometry {
+        ScanGeometry {
+            n_beams: 1,
+            angle_min: 0.3,
+            angle_increment: 0.01,
+            range_min: 0.1,
+            range_max: 30.0,
+            scan_period: 0.025,
+        }
+    }
+
+    fn scan1(seq: u32, mm: u16) -> PolarScan {
+        PolarScan::try_new(
+            SensorId(0),
+            seq,
+            TimeUs(i64::from(seq) * 25_000),
+            vec![mm],
+            one_beam_geometry(),
+        )
+        .unwrap()
+    }
+
+    fn simpson(d2: f64) -> f64 {
+        let n = 10_000;
+        let h = d2 / n as f64;
+        let mut s = chi2_2dof_pdf(0.0) + chi2_2dof_pdf(d2);
+        for i in 1..n {
+            s += chi2_2dof_pdf(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+        }
+        s * h / 3.0
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn static_probability_is_exp(d2 in 0.0f64..40.0) {
+            prop_assert!((static_probability(d2) - (-d2 / 2.0).exp()).abs() < 1e-12);
+            prop_assert!((static_probability(d2) - (1.0 - simpson(d2))).abs() < 1e-9);
+            prop_assert_eq!(static_probability(d2) > 0.9, d2 < 0.210_721_031_315_652_6);
+        }
+
+        #[test]
+        fn eq3_matrix_form_equals_range_form(
+            window in prop::collection::vec(1.0f64..20.0, 2..40), d in 0.5f64..25.0,
+            phi in -3.0f64..3.0, sigma in 0.01f64..0.3,
+        ) {
+            let mean = window.iter().sum::<f64>() / window.len() as f64;
+            let (s, c) = phi.sin_cos();
+            let p = Point2::new(d * c, d * s);
+            // mean of the window *points* (not of the ranges)
+            let pm = window.iter().fold(Point2::origin(), |a, r| Point2::new(a.x + r * c, a.y + r * s));
+            let pm = Point2::new(pm.x / window.len() as f64, pm.y / window.len() as f64);
+            let direct = statistical_distance2(&p, &pm, sigma, sigma);
+            let reduced = (d - mean).powi(2) / (sigma * sigma);
+            prop_assert!((direct - reduced).abs() <= 1e-9 * reduced.max(1e-12));
+        }
+    }
+
+    #[test]
+    fn static_beam_is_static_in_995_permille() {
+        let mut bg = ChiSquareBackground::new(
+            &one_beam_geometry(),
+            ChiSquareConfig {
+                region_constraint: false,
+                ..ChiSquareConfig::literal()
+            },
+        )
+        .unwrap();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        let noise = Normal::new(0.0, 0.010).unwrap();
+        let (mut stat, mut total) = (0, 0);
+        for k in 0..100_000u32 {
+            let x: f64 = noise.sample(&mut rng);
+            let mm = ((5.0 + x) * 1000.0).round() as u16;
+            let l = bg.classify_scan(&scan1(k, mm)).unwrap()[0];
+            if k >= 40 {
+                total += 1;
+                stat += usize::from(l == BeamLabel::Static);
+            }
+        }
+        let frac = stat as f64 / total as f64;
+        assert!(frac >= 0.995, "static fraction {frac}");
+    }
+
+    #[test]
+    fn receding_target_is_dynamic() {
+        let mut bg = ChiSquareBackground::new(
+            &one_beam_geometry(),
+            ChiSquareConfig {
+                region_constraint: false,
+                ..ChiSquareConfig::literal()
+            },
+        )
+        .unwrap();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9);
+        let noise = Normal::new(0.0, 0.010).unwrap();
+        let (mut dynamic, mut total) = (0, 0);
+        for k in 0..2000u32 {
+            let d = 2.0 + 0.10 * 0.025 * f64::from(k) + noise.sample(&mut rng);
+            let l = bg
+                .classify_scan(&scan1(k, (d * 1000.0).round() as u16))
+                .unwrap()[0];
+            if k >= 40 {
+                total += 1;
+                dynamic += usize::from(l == BeamLabel::Dynamic);
+            }
+        }
+        let frac = dynamic as f64 / total as f64;
+        assert!(frac >= 0.95, "dynamic fraction {frac}");
+    }
+
+    #[test]
+    fn revealed_background_faithful_vs_literal() {
+        // a wall at 5 m, a person at 2 m for 30 scans (< m), then the wall again
+        let mk = |cfg: ChiSquareConfig| {
+            ChiSquareBackground::new(
+                &one_beam_geometry(),
+                ChiSquareConfig {
+                    region_constraint: false,
+                    long_term: cfg.long_term.map(|lt| LongTermConfig {
+                        warm_scans: 100,
+                        ..lt
+                    }),
+                    ..cfg
+                },
+            )
+            .unwrap()
+        };
+        for (cfg, max_scans) in [
+            (ChiSquareConfig::default(), 1u32),
+            (ChiSquareConfig::literal(), 41),
+        ] {
+            let mut bg = mk(cfg);
+            let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+            let noise = Normal::new(0.0, 0.010).unwrap();
+            let mut k = 0u32;
+            let mut next = |bg: &mut ChiSquareBackground, d: f64| {
+                k += 1;
+                bg.classify_scan(&scan1(
+                    k,
+                    ((d + noise.sample(&mut rng)) * 1000.0).round() as u16,
+                ))
+                .unwrap()[0]
+            };
+            for _ in 0..300 {
+                next(&mut bg, 5.0);
+            }
+            for _ in 0..30 {
+                assert_eq!(next(&mut bg, 2.0), BeamLabel::Dynamic);
+            }
+            let mut until = 0;
+            for i in 1..=100 {
+                if next(&mut bg, 5.0) == BeamLabel::Static {
+                    until = i;
+                    break;
+                }
+            }
+            assert!(
+                until >= 1 && until <= max_scans,
+                "static again after {until} scans (max {max_scans})"
+            );
+        }
+    }
+
+    #[test]
+    fn region_rules() {
+        let p = |x: f64| Some(Point2::new(x, 0.0));
+        // 10 candidates with 15 dynamic neighbours within delta => all dynamic
+        let pts: Vec<Option<Point2>> = (0..25).map(|i| p(f64::from(i) * 0.001)).collect();
+        let cand: Vec<bool> = (0..25).map(|i| i < 10).collect();
+        assert!(
+            region_constraint(&pts, &cand, 0.3)
+                .unwrap()
+                .iter()
+                .all(|s| !s)
+        );
+        // static majority => static
+        let cand: Vec<bool> = (0..25).map(|i| i < 15).collect();
+        let out = region_constraint(&pts, &cand, 0.3).unwrap();
+        assert!(out[..15].iter().all(|s| *s) && out[15..].iter().all(|s| !s));
+        // tie => dynamic: candidate 0 with 1 candidate and 1 non-candidate neighbour
+        let pts3 = vec![p(0.0), p(0.1), p(-0.1)];
+        let out = region_constraint(&pts3, &[true, true, false], 0.15).unwrap();
+        assert!(!out[0]);
+        // empty neighbourhood => static; invalid beams are ignored
+        let out = region_constraint(&[p(0.0), None, p(5.0)], &[true, false, false], 0.3).unwrap();
+        assert_eq!(out, vec![true, false, false]);
+    }
+
+    #[test]
+    fn bad_input_is_rejected() {
+        let mut bg =
+            ChiSquareBackground::new(&ScanGeometry::utm30lx(), ChiSquareConfig::default()).unwrap();
+        let bad = PolarScan {
+            sensor: SensorId(0),
+            seq: 0,
+            t: TimeUs(0),
+            ranges_mm: vec![1000; 10],
+            geometry: ScanGeometry::utm30lx(),
+        };
+        assert!(bg.classify(&bad).is_err());
+        let ok = PolarScan::try_new(
+            SensorId(0),
+            1,
+            TimeUs(100),
+            vec![1000; 1081],
+            ScanGeometry::utm30lx(),
+        )
+        .unwrap();
+        assert_eq!(bg.classify(&ok).unwrap().len(), 1081);
+        let back = PolarScan {
+            t: TimeUs(50),
+            ..ok
+        };
+        assert!(bg.classify(&back).is_err());
+        assert_eq!(bg.scans_seen(), 1);
+        assert!(
+            ChiSquareBackground::new(
+                &ScanGeometry::utm30lx(),
+                ChiSquareConfig {
+                    window: 1,
+                    ..ChiSquareConfig::default()
+                }
+            )
+            .is_err()
+        );
+    }
+
+    #[test]
+    fn variance_test_flags_closer_ranges() {
+        let init: Vec<Vec<f64>> = (0..20)
+            .map(|k| vec![5.0 + 0.001 * f64::from(k % 3), 3.0])
+            .collect();
+        let mut t = VarianceChi2Test::new(&init, 0.005, 10.83).unwrap();
+        let mut out = Vec::new();
+        t.test(&[4.0, 3.5], &mut out).unwrap();
+        assert_eq!(out, vec![true, false]); // farther than the mean is not foreground
+        t.push(&[4.0, 3.5]).unwrap();
+        assert!(t.test(&[1.0], &mut out).is_err());
+    }
+}
