@@ -9,6 +9,6 @@
 //! ```
 
 mod error;
-pub mod slamot;
+pub mod lidar_people;
 
 pub use error::TrackerError;

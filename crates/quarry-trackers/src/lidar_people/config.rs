@@ -1,0 +1,326 @@
+//! [`LidarPeopleConfig`]: every parameter of spec 003 §3, serde/TOML, `Default` = `faithful`.
+
+use crate::TrackerError;
+use serde::{Deserialize, Serialize};
+
+/// The three presets of spec 003: switches over one code path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    /// The paper read word for word (ablation): model→data ICP from the cluster centre, no
+    /// trimming, K_m = 16, nearest-mode association, no revealed-background rule.
+    Literal,
+    /// The reproduction (default): the paper's structure with the smallest documented gap fills.
+    #[default]
+    Faithful,
+    /// The same detector, then a CV Kalman filter, χ² gate, Hungarian GNN and M-of-N.
+    KfGnn,
+}
+
+impl Preset {
+    /// Parses `literal`, `faithful`, `kf-gnn` (or `kf_gnn`).
+    pub fn parse(s: &str) -> Result<Self, TrackerError> {
+        match s {
+            "literal" => Ok(Self::Literal),
+            "faithful" => Ok(Self::Faithful),
+            "kf-gnn" | "kf_gnn" | "kfgnn" => Ok(Self::KfGnn),
+            _ => Err(TrackerError::Config(format!(
+                "unknown preset {s:?} (expected literal, faithful or kf-gnn)"
+            ))),
+        }
+    }
+
+    /// `literal`, `faithful`, `kf-gnn`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Literal => "literal",
+            Self::Faithful => "faithful",
+            Self::KfGnn => "kf-gnn",
+        }
+    }
+}
+
+/// Every parameter of spec 003 §3. Tags: **[P]** paper, **[D]** UTM-30LX datasheet, **[Q]**
+/// proposed by the spec (with the reason given there).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LidarPeopleConfig {
+    /// Which preset the switches below came from (informational; the switches rule).
+    pub preset: Preset,
+
+    // ----- background (§2.2) -----
+    /// Background window m, scans [Q: 40 = 1 s; lag 5 cm at 0.10 m/s].
+    pub window_m: usize,
+    /// Static-probability threshold P_th [P: 0.9].
+    pub p_th: f64,
+    /// Tolerance factor κ: σ_bg = κ·σ_d(d) [Q: 7, §6 A1].
+    pub kappa: f64,
+    /// Region-constraint radius δ, metres [Q: 0.30].
+    pub delta_region: f64,
+    /// Long-term background with the revealed-background override [Q; off in `literal`].
+    pub revealed_background: bool,
+    /// Background warm-up T_warm, seconds [Q: 5].
+    pub t_warm_s: f64,
+    /// Background update rate α_b [Q: 0.02].
+    pub alpha_b: f64,
+    /// Relearn time T_relearn, seconds [Q: 2].
+    pub t_relearn_s: f64,
+
+    // ----- fusion (§2.4) -----
+    /// Fused-frame interval T_F, seconds [P: 0.05].
+    pub frame_period_s: f64,
+    /// Fusion time tolerance τ_sync, seconds [Q: 0.0125, half a scan period].
+    pub tau_sync_s: f64,
+    /// Maximum accepted latency L_max, seconds [Q: 0.1].
+    pub l_max_s: f64,
+
+    // ----- MeanShift (§2.5) -----
+    /// Flat-kernel bandwidth h, metres [Q: 0.30].
+    pub bandwidth: f64,
+    /// Minimum cluster size n_min [Q: 3].
+    pub n_min_cluster: usize,
+
+    // ----- contour and ICP (§2.6) -----
+    /// Ellipse semi-axis a_m (shoulders), metres [Q: 0.22].
+    pub a_m: f64,
+    /// Ellipse semi-axis b_m (chest depth), metres [Q: 0.13].
+    pub b_m: f64,
+    /// Model points K_m [Q: 72; `literal` 16].
+    pub k_m: usize,
+    /// ICP RMS stop e, metres [rule P, value Q: 0.01].
+    pub icp_e: f64,
+    /// ICP stop on ΔRMS ε_Δ, metres [Q: 1e-4].
+    pub icp_eps_delta: f64,
+    /// ICP iteration cap it_max [Q: 30].
+    pub icp_it_max: u32,
+    /// Correspondences data→model (default) or model→data (`literal`, the paper's step ①).
+    pub icp_data_to_model: bool,
+    /// Trimming τ_out: 0.25 m for the first 3 iterations, then 0.10 m [Q; off in `literal`].
+    pub icp_trim: bool,
+    /// Removal margin r_m, metres [Q: 0.10].
+    pub r_m: f64,
+    /// Two orientation starts φ_pca, φ_pca + π/2 for new clusters [Q; `literal`: one start at 0].
+    pub two_starts: bool,
+
+    // ----- Table 1 (§2.8) -----
+    /// Minimum support min_num_point [Q: 8].
+    pub min_num_point: usize,
+    /// Maximum match RMS d_m_matching, metres [Q: 0.05].
+    pub d_m_matching: f64,
+    /// ICP data radius for tracks R_icp, metres [Q: a_m + 0.15 = 0.37].
+    pub r_icp: f64,
+    /// `literal`: a track takes the cluster whose mode is nearest, within R_assoc [Q: 0.5 m].
+    pub nearest_mode_assoc: bool,
+    /// R_assoc, metres [Q: 0.5].
+    pub r_assoc: f64,
+
+    // ----- gate (8) (§2.7) -----
+    /// σ_X = σ_Y, metres [Q: 0.06].
+    pub sigma_pos: f64,
+    /// σ_Ẋ = σ_Ẏ, m/s [Q: 1.5].
+    pub sigma_vel: f64,
+    /// Gate constant k [Q: √χ²₄(0.99) = 3.644].
+    pub gate_k: f64,
+
+    // ----- kf-gnn (§2.9) -----
+    /// CWNA intensity q, m²/s³ [Q: 0.5].
+    pub kf_q: f64,
+    /// Measurement σ_r, metres [Q: 0.03].
+    pub kf_sigma_r: f64,
+    /// χ²₂ gate γ [Q: 9.21 = χ²₂(0.99)].
+    pub kf_gamma: f64,
+    /// Confirmation M of N [Q: 3 of 4].
+    pub kf_m: u32,
+    /// Confirmation window N [Q: 4].
+    pub kf_n: u32,
+    /// Deletion after more than N_del consecutive misses [Q: 5].
+    pub kf_n_del: u32,
+    /// Report confirmed tracks coasting at most this many frames [Q: 2].
+    pub kf_max_coast_report: u32,
+
+    // ----- evaluation (§4) -----
+    /// Evaluation match threshold d_match, metres [Q: 0.5].
+    pub d_match: f64,
+}
+
+impl Default for LidarPeopleConfig {
+    fn default() -> Self {
+        Self::faithful()
+    }
+}
+
+impl LidarPeopleConfig {
+    /// The `faithful` preset (the default).
+    pub fn faithful() -> Self {
+        Self {
+            preset: Preset::Faithful,
+            window_m: 40,
+            p_th: 0.9,
+            kappa: 7.0,
+            delta_region: 0.30,
+            revealed_background: true,
+            t_warm_s: 5.0,
+            alpha_b: 0.02,
+            t_relearn_s: 2.0,
+            frame_period_s: 0.05,
+            tau_sync_s: 0.0125,
+            l_max_s: 0.1,
+            bandwidth: 0.30,
+            n_min_cluster: 3,
+            a_m: 0.22,
+            b_m: 0.13,
+            k_m: 72,
+            icp_e: 0.01,
+            icp_eps_delta: 1e-4,
+            icp_it_max: 30,
+            icp_data_to_model: true,
+            icp_trim: true,
+            r_m: 0.10,
+            two_starts: true,
+            min_num_point: 8,
+            d_m_matching: 0.05,
+            r_icp: 0.37,
+            nearest_mode_assoc: false,
+            r_assoc: 0.5,
+            sigma_pos: 0.06,
+            sigma_vel: 1.5,
+            gate_k: 3.643_721,
+            kf_q: 0.5,
+            kf_sigma_r: 0.03,
+            kf_gamma: 9.21,
+            kf_m: 3,
+            kf_n: 4,
+            kf_n_del: 5,
+            kf_max_coast_report: 2,
+            d_match: 0.5,
+        }
+    }
+
+    /// The `literal` preset.
+    pub fn literal() -> Self {
+        Self {
+            preset: Preset::Literal,
+            revealed_background: false,
+            k_m: 16,
+            icp_data_to_model: false,
+            icp_trim: false,
+            two_starts: false,
+            nearest_mode_assoc: true,
+            ..Self::faithful()
+        }
+    }
+
+    /// The `kf-gnn` preset.
+    pub fn kf_gnn() -> Self {
+        Self {
+            preset: Preset::KfGnn,
+            ..Self::faithful()
+        }
+    }
+
+    /// The configuration of a preset.
+    pub fn preset(p: Preset) -> Self {
+        match p {
+            Preset::Literal => Self::literal(),
+            Preset::Faithful => Self::faithful(),
+            Preset::KfGnn => Self::kf_gnn(),
+        }
+    }
+
+    /// Parses TOML (missing keys take the `faithful` values) and validates.
+    pub fn from_toml(s: &str) -> Result<Self, TrackerError> {
+        let c: Self = toml::from_str(s).map_err(|e| TrackerError::Config(e.to_string()))?;
+        c.validate()?;
+        Ok(c)
+    }
+
+    /// TOML text of this configuration.
+    pub fn to_toml(&self) -> Result<String, TrackerError> {
+        toml::to_string(self).map_err(|e| TrackerError::Config(e.to_string()))
+    }
+
+    /// Checks every value is usable.
+    pub fn validate(&self) -> Result<(), TrackerError> {
+        let pos = [
+            ("p_th", self.p_th),
+            ("kappa", self.kappa),
+            ("delta_region", self.delta_region),
+            ("t_warm_s", self.t_warm_s),
+            ("alpha_b", self.alpha_b),
+            ("t_relearn_s", self.t_relearn_s),
+            ("frame_period_s", self.frame_period_s),
+            ("tau_sync_s", self.tau_sync_s),
+            ("l_max_s", self.l_max_s),
+            ("bandwidth", self.bandwidth),
+            ("a_m", self.a_m),
+            ("b_m", self.b_m),
+            ("d_m_matching", self.d_m_matching),
+            ("r_icp", self.r_icp),
+            ("r_assoc", self.r_assoc),
+            ("sigma_pos", self.sigma_pos),
+            ("sigma_vel", self.sigma_vel),
+            ("gate_k", self.gate_k),
+            ("kf_q", self.kf_q),
+            ("kf_sigma_r", self.kf_sigma_r),
+            ("kf_gamma", self.kf_gamma),
+            ("d_match", self.d_match),
+        ];
+        for (name, v) in pos {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(TrackerError::Config(format!(
+                    "{name} must be finite and > 0, got {v}"
+                )));
+            }
+        }
+        let nonneg = [
+            ("icp_e", self.icp_e),
+            ("icp_eps_delta", self.icp_eps_delta),
+            ("r_m", self.r_m),
+        ];
+        for (name, v) in nonneg {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(TrackerError::Config(format!(
+                    "{name} must be finite and >= 0, got {v}"
+                )));
+            }
+        }
+        if !(self.p_th < 1.0 && self.alpha_b <= 1.0) {
+            return Err(TrackerError::Config(
+                "p_th must be < 1 and alpha_b <= 1".into(),
+            ));
+        }
+        if self.window_m < 2 || self.k_m < 3 || self.icp_it_max == 0 || self.min_num_point == 0 {
+            return Err(TrackerError::Config(
+                "window_m >= 2, k_m >= 3, icp_it_max >= 1 and min_num_point >= 1 are required"
+                    .into(),
+            ));
+        }
+        if self.kf_m == 0 || self.kf_m > self.kf_n || self.kf_n > 64 {
+            return Err(TrackerError::Config(
+                "kf-gnn needs 1 <= kf_m <= kf_n <= 64".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_round_trip_and_defaults() {
+        let c = LidarPeopleConfig::default();
+        assert_eq!(c.preset, Preset::Faithful);
+        let t = c.to_toml().unwrap();
+        assert_eq!(LidarPeopleConfig::from_toml(&t).unwrap(), c);
+        let l = LidarPeopleConfig::from_toml("preset = \"literal\"\nk_m = 16\n").unwrap();
+        assert_eq!(l.k_m, 16);
+        assert_eq!(l.window_m, 40);
+        assert!(LidarPeopleConfig::from_toml("bandwidth = -1.0").is_err());
+        assert!(LidarPeopleConfig::from_toml("nonsense = 1").is_err());
+        assert_eq!(LidarPeopleConfig::literal().k_m, 16);
+        assert!(!LidarPeopleConfig::literal().icp_trim);
+        assert!((c.gate_k * c.gate_k - 13.2767).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,302 @@
+//! The client and server halves of the distributed pipeline (spec 003 §1, §7), and the
+//! in-process run over the room simulator.
+
+use super::config::LidarPeopleConfig;
+use super::metrics::EvalFrame;
+use super::tracker::{FusedPoints, LidarTrack};
+use crate::TrackerError;
+use quarry_core::{
+    BackgroundModel, BeamLabel, Clusterer, FrameIndex, MultiTargetTracker, Point2, PolarScan,
+    Pose2, Registration2, ScanGeometry, SensorId, Stamp, TimeUs,
+};
+use quarry_sim::lidar_room::{GtFrame, RoomEvent, Runner, Scenario};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::time::Instant;
+
+/// The dynamic points of one scan, as a client publishes them (the paper's
+/// `[timestamp, LaserData]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynamicScan {
+    /// Sensor.
+    pub sensor: SensorId,
+    /// Scan counter.
+    pub seq: u32,
+    /// Synchronised capture time of the front beam.
+    pub t: TimeUs,
+    /// Whether the client's clock was synchronised.
+    pub synced: bool,
+    /// `(beam, range_mm)` of the dynamic beams.
+    pub beams: Vec<(u16, u16)>,
+}
+
+/// One scanner client: background subtraction, then publication of the dynamic beams.
+#[derive(Debug, Clone)]
+pub struct ClientPipeline<B> {
+    /// Sensor id.
+    pub sensor: SensorId,
+    /// The background model.
+    pub background: B,
+    static_points: Vec<(usize, f64)>,
+}
+
+impl<B: BackgroundModel> ClientPipeline<B> {
+    /// A client for `sensor` with its background model.
+    pub fn new(sensor: SensorId, background: B) -> Self {
+        Self {
+            sensor,
+            background,
+            static_points: Vec::new(),
+        }
+    }
+
+    /// Labels a scan and returns its dynamic beams.
+    pub fn on_scan(&mut self, scan: &PolarScan, synced: bool) -> Result<DynamicScan, TrackerError> {
+        let labels = self.background.classify(scan)?;
+        let mut beams = Vec::new();
+        self.static_points.clear();
+        for (n, l) in labels.iter().enumerate() {
+            match l {
+                BeamLabel::Dynamic => beams.push((n as u16, scan.ranges_mm[n])),
+                BeamLabel::Static => {
+                    if let Some(r) = scan.range_m(n) {
+                        self.static_points.push((n, r));
+                    }
+                }
+                BeamLabel::Invalid => {}
+            }
+        }
+        Ok(DynamicScan {
+            sensor: scan.sensor,
+            seq: scan.seq,
+            t: scan.t,
+            synced,
+            beams,
+        })
+    }
+
+    /// The static returns `(beam, range m)` of the last scan (the background, for plots and
+    /// calibration).
+    pub fn last_static(&self) -> &[(usize, f64)] {
+        &self.static_points
+    }
+}
+
+/// The server's fusion stage: dynamic scans in (with arrival times), closed frames out.
+pub trait Fusion {
+    /// Hands over one received message.
+    fn push(&mut self, scan: DynamicScan, arrival: TimeUs) -> Result<(), TrackerError>;
+    /// Closes every frame whose release condition holds at server time `now`.
+    fn poll(&mut self, now: TimeUs) -> Result<Vec<FusedPoints>, TrackerError>;
+}
+
+/// The server: fusion then tracking.
+pub struct ServerPipeline<F, T> {
+    /// The fusion stage.
+    pub fusion: F,
+    /// The tracker.
+    pub tracker: T,
+    frame_us: i64,
+    /// Time spent in the tracker, seconds.
+    pub tracker_seconds: f64,
+}
+
+impl<F: Fusion, T> ServerPipeline<F, T>
+where
+    T: MultiTargetTracker<Input = FusedPoints, Error = TrackerError>,
+{
+    /// A server over a fusion stage and a tracker, with frame period `frame_period_s`.
+    pub fn new(fusion: F, tracker: T, frame_period_s: f64) -> Self {
+        Self {
+            fusion,
+            tracker,
+            frame_us: (frame_period_s * 1e6).round() as i64,
+            tracker_seconds: 0.0,
+        }
+    }
+
+    /// Receives one message.
+    pub fn on_message(&mut self, scan: DynamicScan, arrival: TimeUs) -> Result<(), TrackerError> {
+        self.fusion.push(scan, arrival)
+    }
+
+    /// Closes the due frames and tracks them; returns `(frame index, frame)` of each.
+    pub fn poll(
+        &mut self,
+        now: TimeUs,
+    ) -> Result<Vec<(u64, FusedPoints, Vec<quarry_core::TrackReport>)>, TrackerError> {
+        let mut out = Vec::new();
+        for f in self.fusion.poll(now)? {
+            let k = (f.t.0 / self.frame_us.max(1)) as u64;
+            let stamp = Stamp {
+                frame: FrameIndex(k),
+                t: f.t,
+            };
+            let t0 = Instant::now();
+            let reps = self.tracker.step(stamp, &f)?;
+            self.tracker_seconds += t0.elapsed().as_secs_f64();
+            out.push((k, f, reps));
+        }
+        Ok(out)
+    }
+}
+
+/// The result of an in-process run over the room simulator.
+#[derive(Debug, Clone, Default)]
+pub struct RoomRun {
+    /// Ground truth of every frame.
+    pub gt: Vec<GtFrame>,
+    /// Track rows of every tracked frame, by frame index.
+    pub tracks: Vec<(u64, TimeUs, Vec<LidarTrack>)>,
+    /// Background (static) points in the world frame, from the last scans.
+    pub background: Vec<Point2>,
+    /// Number of tracked frames.
+    pub frames_tracked: usize,
+    /// Time spent in fusion + tracking, seconds.
+    pub server_seconds: f64,
+    /// Time spent in the clients' background subtraction, seconds.
+    pub client_seconds: f64,
+}
+
+impl RoomRun {
+    /// The evaluation frames of the §4 window: `n` consecutive frames from the first with
+    /// `t ≥ t_start`. Frames the server never closed count as "no tracks".
+    pub fn eval_window(&self, t_start: TimeUs, n: usize) -> Vec<EvalFrame> {
+        let by_frame: std::collections::HashMap<u64, &Vec<LidarTrack>> =
+            self.tracks.iter().map(|(k, _, r)| (*k, r)).collect();
+        self.gt
+            .iter()
+            .filter(|g| g.t >= t_start)
+            .take(n)
+            .map(|g| EvalFrame {
+                t: g.t,
+                gt: g
+                    .people
+                    .iter()
+                    .map(|p| (p.id, [p.x, p.y], p.pts.iter().sum()))
+                    .collect(),
+                tracks: by_frame
+                    .get(&g.frame)
+                    .map(|rows| rows.iter().map(|r| (r.id, [r.x, r.y])).collect())
+                    .unwrap_or_default(),
+            })
+            .collect()
+    }
+}
+
+/// Runs a scenario in process: simulated clients (the same client code as the networked
+/// clients), the simulated network, and the server.
+///
+/// `make_background` builds each scanner's background model from its geometry;
+/// `progress` receives the simulated time fraction in [0, 1].
+pub fn run_room<B, F, T>(
+    sc: Scenario,
+    cfg: &LidarPeopleConfig,
+    mut make_background: impl FnMut(&ScanGeometry) -> Result<B, TrackerError>,
+    fusion: F,
+    tracker: T,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RoomRun, TrackerError>
+where
+    B: BackgroundModel,
+    F: Fusion,
+    T: MultiTargetTracker<Input = FusedPoints, Error = TrackerError> + RowSource,
+{
+    cfg.validate()?;
+    let poses: Vec<Pose2> = sc.scanners.iter().map(|s| s.pose).collect();
+    let mut clients = sc
+        .scanners
+        .iter()
+        .map(|s| Ok(ClientPipeline::new(s.id, make_background(&s.geometry)?)))
+        .collect::<Result<Vec<_>, TrackerError>>()?;
+    let geoms: Vec<ScanGeometry> = sc.scanners.iter().map(|s| s.geometry).collect();
+    let duration = sc.duration_s;
+    let mut runner = Runner::new(sc).map_err(|e| TrackerError::Config(e.to_string()))?;
+    let mut server = ServerPipeline::new(fusion, tracker, cfg.frame_period_s);
+    let mut queue: BinaryHeap<Reverse<(i64, u64, usize)>> = BinaryHeap::new();
+    let mut pending: Vec<Option<DynamicScan>> = Vec::new();
+    let mut counter = 0u64;
+    let mut run = RoomRun::default();
+    let mut last_report = 0.0;
+    let deliver = |server: &mut ServerPipeline<F, T>,
+                   queue: &mut BinaryHeap<Reverse<(i64, u64, usize)>>,
+                   pending: &mut Vec<Option<DynamicScan>>,
+                   now: i64,
+                   run: &mut RoomRun|
+     -> Result<(), TrackerError> {
+        while let Some(Reverse((ta, _, idx))) = queue.peek().copied() {
+            if ta > now {
+                break;
+            }
+            queue.pop();
+            if let Some(m) = pending.get_mut(idx).and_then(Option::take) {
+                server.on_message(m, TimeUs(ta))?;
+            }
+        }
+        let t0 = Instant::now();
+        for (k, f, _) in server.poll(TimeUs(now))? {
+            run.frames_tracked += 1;
+            run.tracks.push((k, f.t, server.tracker.rows().to_vec()));
+        }
+        run.server_seconds += t0.elapsed().as_secs_f64();
+        Ok(())
+    };
+    while let Some(ev) = runner
+        .next_event()
+        .map_err(|e| TrackerError::Config(e.to_string()))?
+    {
+        match ev {
+            RoomEvent::Scan(cs) => {
+                let now = cs.t_true.0;
+                let t0 = Instant::now();
+                let i = cs.scanner;
+                let msg = clients[i].on_scan(&cs.scan, cs.clock_synced)?;
+                run.client_seconds += t0.elapsed().as_secs_f64();
+                for a in &cs.arrivals {
+                    pending.push(Some(msg.clone()));
+                    queue.push(Reverse((a.0, counter, pending.len() - 1)));
+                    counter += 1;
+                }
+                deliver(&mut server, &mut queue, &mut pending, now, &mut run)?;
+            }
+            RoomEvent::Frame(g) => {
+                let now = g.t.0;
+                let frac = g.t.as_secs_f64() / duration;
+                if frac - last_report >= 0.01 {
+                    progress(frac.min(1.0));
+                    last_report = frac;
+                }
+                run.gt.push(g);
+                deliver(&mut server, &mut queue, &mut pending, now, &mut run)?;
+                if pending.len() > 4096 && queue.is_empty() {
+                    pending.clear();
+                }
+            }
+        }
+    }
+    // flush: everything arrives, then the last frames close at their deadline
+    let end = run.gt.last().map_or(0, |g| g.t.0) + 1_000_000;
+    deliver(&mut server, &mut queue, &mut pending, end, &mut run)?;
+    progress(1.0);
+    // background points for plots
+    for (c, (pose, g)) in clients.iter().zip(poses.iter().zip(&geoms)) {
+        for &(n, r) in c.last_static() {
+            let a = g.angle(n as u32);
+            run.background
+                .push(pose.apply(&Point2::new(r * a.cos(), r * a.sin())));
+        }
+    }
+    Ok(run)
+}
+
+/// Trackers that expose the `tracks.csv` rows of their last frame.
+pub trait RowSource {
+    /// The rows of the last processed frame.
+    fn rows(&self) -> &[LidarTrack];
+}
+
+impl<C: Clusterer, R: Registration2> RowSource for super::LidarPeopleTracker<C, R> {
+    fn rows(&self) -> &[LidarTrack] {
+        self.last_rows()
+    }
+}

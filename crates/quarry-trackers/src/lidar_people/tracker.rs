@@ -1,0 +1,706 @@
+//! The detector ([`ContourDetector`]) and the two trackers ([`Table1Tracker`], [`KfGnnTracker`])
+//! of spec 003 §2.6–§2.9.
+
+use super::config::LidarPeopleConfig;
+use crate::TrackerError;
+use nalgebra::{DMatrix, Matrix4, Vector2, Vector4};
+use quarry_assoc::PvState;
+use quarry_assoc::lifecycle::{MOfN, MOfNRecord, ScanObservation, TrackLifecycle, TrackState};
+use quarry_core::{
+    Clusterer, Clustering, CoreError, Gate, Gaussian, MultiTargetTracker, Point2, Pose2,
+    Registration2, Stamp, StateEstimate, StateLayout, TimeUs, TrackFlags, TrackId, TrackReport,
+    TrackStatus,
+};
+use quarry_filter::{ConstantVelocity2, Ekf, Position2};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::f64::consts::FRAC_PI_2;
+
+/// One fused frame: the world-frame dynamic points of all sensors near `t` (spec §2.4).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FusedPoints {
+    /// Frame time t_f.
+    pub t: TimeUs,
+    /// Dynamic points, world frame, sorted by (sensor, beam).
+    pub points: Vec<Point2>,
+    /// No sensor contributed: the tracker skips the frame (no deletions, Δt grows).
+    pub no_data: bool,
+}
+
+/// A fitted contour: the ellipse pose, its ICP residual e* and its support n_rm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContourFit {
+    /// Model pose in the world (centre = target position; orientation α mod π).
+    pub pose: Pose2,
+    /// e*: RMS over the kept pairs (+∞ when ICP failed or kept fewer than 3 pairs).
+    pub rms: f64,
+    /// Points removed by the removal ellipse (n_rm).
+    pub support: usize,
+}
+
+/// One row of a tracker's output (the columns of `tracks.csv`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LidarTrack {
+    /// Track id.
+    pub id: u32,
+    /// Position x, metres.
+    pub x: f64,
+    /// Position y, metres.
+    pub y: f64,
+    /// Ellipse orientation α (mod π).
+    pub alpha: f64,
+    /// Velocity x (0 when unknown).
+    pub vx: f64,
+    /// Velocity y (0 when unknown).
+    pub vy: f64,
+    /// Support n_rm.
+    pub support: usize,
+    /// ICP RMS e*.
+    pub rms: f64,
+    /// Born this frame.
+    pub born: bool,
+    /// Born as the replacement of a track whose gate failed.
+    pub gate_replaced: bool,
+}
+
+/// The MeanShift + ICP-ellipse detector, generic over the clusterer and the registration.
+#[derive(Debug, Clone)]
+pub struct ContourDetector<C, R> {
+    /// The clusterer (MeanShift, h = 0.30 m).
+    pub clusterer: C,
+    /// The registration (contour ICP).
+    pub registration: R,
+    /// The contour model points (model frame, x along the shoulders).
+    pub model: Vec<Point2>,
+    /// Semi-axes `(a_m, b_m)`.
+    pub axes: (f64, f64),
+    /// Removal margin r_m.
+    pub r_m: f64,
+    /// min_num_point.
+    pub min_num_point: usize,
+    /// d_m_matching.
+    pub d_m_matching: f64,
+    /// Two orientation starts for new clusters (`faithful`), else one start at α = 0.
+    pub two_starts: bool,
+}
+
+/// `φ_pca = ½·atan2(2C_xy, C_xx − C_yy)` of a point set.
+pub fn pca_angle(pts: &[Point2]) -> f64 {
+    let n = pts.len().max(1) as f64;
+    let mx = pts.iter().map(|p| p.x).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.y).sum::<f64>() / n;
+    let (mut cxx, mut cyy, mut cxy) = (0.0, 0.0, 0.0);
+    for p in pts {
+        let (dx, dy) = (p.x - mx, p.y - my);
+        cxx += dx * dx;
+        cyy += dy * dy;
+        cxy += dx * dy;
+    }
+    0.5 * (2.0 * cxy).atan2(cxx - cyy)
+}
+
+impl<C: Clusterer, R: Registration2> ContourDetector<C, R> {
+    /// ICP of the model onto `data` from `init`; failure (e.g. `TooFewPoints`) gives e* = ∞.
+    pub fn fit(&self, data: &[Point2], init: Pose2) -> (Pose2, f64) {
+        match self.registration.register(&self.model, data, init) {
+            Ok(r) if r.inliers >= 3 && r.rms.is_finite() && r.pose.is_finite() => (r.pose, r.rms),
+            Ok(r) if r.pose.is_finite() => (r.pose, f64::INFINITY),
+            _ => (init, f64::INFINITY),
+        }
+    }
+
+    /// Fit for a new cluster: centre `c`, one start at α = 0 or two starts at φ_pca and
+    /// φ_pca + π/2, keeping the lower e*.
+    pub fn fit_new(&self, data: &[Point2], c: Point2) -> (Pose2, f64) {
+        if !self.two_starts {
+            return self.fit(data, Pose2::new(c.x, c.y, 0.0));
+        }
+        let phi = pca_angle(data);
+        let a = self.fit(data, Pose2::new(c.x, c.y, phi));
+        let b = self.fit(data, Pose2::new(c.x, c.y, phi + FRAC_PI_2));
+        if b.1 < a.1 { b } else { a }
+    }
+
+    /// Removes (clears in `remaining`) every point inside the removal ellipse of `pose`; returns
+    /// how many were removed.
+    pub fn remove_inside(&self, pose: &Pose2, pts: &[Point2], remaining: &mut [bool]) -> usize {
+        let ea = self.axes.0 + self.r_m;
+        let eb = self.axes.1 + self.r_m;
+        let mut n = 0;
+        for (q, r) in pts.iter().zip(remaining.iter_mut()) {
+            if !*r {
+                continue;
+            }
+            let l = pose.apply_inverse(q);
+            if (l.x / ea).powi(2) + (l.y / eb).powi(2) <= 1.0 {
+                *r = false;
+                n += 1;
+            }
+        }
+        n
+    }
+
+    /// Lines 10–17 of Table 1: fits ellipses to the clusters' remaining points, largest first,
+    /// revisiting a cluster up to 3 times (merged people). Returns the fits passing line 16.
+    pub fn detect_new(
+        &self,
+        pts: &[Point2],
+        cl: &Clustering,
+        remaining: &mut [bool],
+    ) -> Vec<ContourFit> {
+        let k = cl.modes.len();
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); k];
+        for (i, l) in cl.labels.iter().enumerate() {
+            if let Some(c) = l
+                && let Some(m) = members.get_mut(*c as usize)
+            {
+                m.push(i);
+            }
+        }
+        let count = |c: usize, rem: &[bool]| members[c].iter().filter(|&&i| rem[i]).count();
+        let mut order: Vec<usize> = (0..k).collect();
+        order.sort_by(|&a, &b| {
+            count(b, remaining).cmp(&count(a, remaining)).then(
+                cl.modes[a]
+                    .x
+                    .total_cmp(&cl.modes[b].x)
+                    .then(cl.modes[a].y.total_cmp(&cl.modes[b].y)),
+            )
+        });
+        let mut q: VecDeque<usize> = order.into();
+        let mut passes = vec![0u32; k];
+        let mut out = Vec::new();
+        let mut data = Vec::new();
+        while let Some(c) = q.pop_front() {
+            data.clear();
+            data.extend(
+                members[c]
+                    .iter()
+                    .filter(|&&i| remaining[i])
+                    .map(|&i| pts[i]),
+            );
+            passes[c] += 1;
+            if data.len() < self.min_num_point {
+                continue;
+            }
+            let centre = if passes[c] == 1 {
+                cl.modes[c]
+            } else {
+                let n = data.len() as f64;
+                Point2::new(
+                    data.iter().map(|p| p.x).sum::<f64>() / n,
+                    data.iter().map(|p| p.y).sum::<f64>() / n,
+                )
+            };
+            let (pose, rms) = self.fit_new(&data, centre);
+            let removed = self.remove_inside(&pose, pts, remaining);
+            if removed > self.min_num_point && rms < self.d_m_matching {
+                out.push(ContourFit {
+                    pose,
+                    rms,
+                    support: removed,
+                });
+            }
+            if removed > 0 && count(c, remaining) >= self.min_num_point && passes[c] < 3 {
+                q.push_back(c);
+            }
+        }
+        out
+    }
+}
+
+/// Heading from the ellipse orientation, signed by the velocity when known.
+fn heading(alpha: f64, v: Option<Vector2<f64>>) -> f64 {
+    let h = alpha + FRAC_PI_2;
+    match v {
+        Some(v) if v.norm() > 1e-6 => {
+            let d = Vector2::new(h.cos(), h.sin());
+            if d.dot(&v) < 0.0 {
+                quarry_core::wrap_angle(h + std::f64::consts::PI)
+            } else {
+                quarry_core::wrap_angle(h)
+            }
+        }
+        _ => quarry_core::wrap_angle(h),
+    }
+}
+
+fn report(stamp: Stamp, row: &LidarTrack, vel_known: bool) -> TrackReport {
+    let mut r = TrackReport::new(stamp, TrackId(row.id), TrackStatus::Confirmed);
+    let v = vel_known.then(|| Vector2::new(row.vx, row.vy));
+    let h = heading(row.alpha, v);
+    r.state = Some(if vel_known {
+        StateEstimate {
+            layout: StateLayout::XyVxVyHeading,
+            mean: nalgebra::DVector::from_vec(vec![row.x, row.y, row.vx, row.vy, h]),
+            cov: None,
+        }
+    } else {
+        StateEstimate {
+            layout: StateLayout::XyHeading,
+            mean: nalgebra::DVector::from_vec(vec![row.x, row.y, h]),
+            cov: None,
+        }
+    });
+    r.score = Some(row.rms);
+    if row.born {
+        r.flags.insert(TrackFlags::BORN);
+    }
+    if row.gate_replaced {
+        r.flags.insert(TrackFlags::GATE_REPLACED);
+    }
+    r
+}
+
+#[derive(Debug, Clone)]
+struct T1Track {
+    id: u32,
+    p: Vector2<f64>,
+    v: Option<Vector2<f64>>,
+    alpha: f64,
+    t_last: TimeUs,
+    age: u32,
+    rms: f64,
+    support: usize,
+}
+
+/// The paper's tracker (Table 1): per-track ICP from the prediction, removal of explained points,
+/// gate (8), create/update/delete. Generic over the gate.
+#[derive(Debug, Clone)]
+pub struct Table1Tracker<C, R, G> {
+    /// The detector.
+    pub detector: ContourDetector<C, R>,
+    /// The association gate (eq. 8 by default).
+    pub gate: G,
+    /// ICP data radius R_icp around the prediction.
+    pub r_icp: f64,
+    /// `literal`: take the cluster whose mode is nearest the track, within `r_assoc`.
+    pub nearest_mode_assoc: bool,
+    /// R_assoc.
+    pub r_assoc: f64,
+    tracks: Vec<T1Track>,
+    next_id: u32,
+    last: Vec<LidarTrack>,
+}
+
+impl<C: Clusterer, R: Registration2, G: Gate<PvState, Vector2<f64>>> Table1Tracker<C, R, G> {
+    /// A tracker from its parts and the Table 1 parameters of `cfg`.
+    pub fn new(detector: ContourDetector<C, R>, gate: G, cfg: &LidarPeopleConfig) -> Self {
+        Self {
+            detector,
+            gate,
+            r_icp: cfg.r_icp,
+            nearest_mode_assoc: cfg.nearest_mode_assoc,
+            r_assoc: cfg.r_assoc,
+            tracks: Vec::new(),
+            next_id: 0,
+            last: Vec::new(),
+        }
+    }
+
+    /// The rows of the last processed frame.
+    pub fn last_rows(&self) -> &[LidarTrack] {
+        &self.last
+    }
+
+    fn new_id(&mut self) -> u32 {
+        let id = self.next_id;
+        self.next_id += 1;
+        id
+    }
+
+    /// Processes one fused frame (TRACK_FRAME of spec §2.8).
+    pub fn process(
+        &mut self,
+        stamp: Stamp,
+        frame: &FusedPoints,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        if frame.no_data {
+            self.last.clear();
+            return Ok(Vec::new());
+        }
+        let pts = &frame.points;
+        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
+            return Err(CoreError::NonFinite {
+                what: "fused frame points",
+            }
+            .into());
+        }
+        let t = frame.t;
+        let cl = if pts.is_empty() {
+            Clustering::default()
+        } else {
+            self.detector.clusterer.cluster(pts)?
+        };
+        let mut remaining = vec![true; pts.len()];
+        let mut rows: Vec<LidarTrack> = Vec::new();
+        let mut keep: Vec<T1Track> = Vec::new();
+        let mut replacements: Vec<(Pose2, f64, usize)> = Vec::new();
+        let tracks = std::mem::take(&mut self.tracks);
+        let mut data = Vec::new();
+        for mut tr in tracks {
+            let dt = t.secs_since(tr.t_last);
+            let p_hat = tr.p + tr.v.unwrap_or_else(Vector2::zeros) * dt;
+            data.clear();
+            let init;
+            if self.nearest_mode_assoc {
+                let best = cl
+                    .modes
+                    .iter()
+                    .enumerate()
+                    .map(|(c, m)| (c, (m.coords - tr.p).norm()))
+                    .min_by(|a, b| a.1.total_cmp(&b.1));
+                match best {
+                    Some((c, d)) if d <= self.r_assoc => {
+                        data.extend(
+                            cl.labels
+                                .iter()
+                                .enumerate()
+                                .filter(|(i, l)| remaining[*i] && **l == Some(c as u32))
+                                .map(|(i, _)| pts[i]),
+                        );
+                        init = Pose2::new(cl.modes[c].x, cl.modes[c].y, tr.alpha);
+                    }
+                    _ => init = Pose2::new(p_hat.x, p_hat.y, tr.alpha),
+                }
+            } else {
+                let r2 = self.r_icp * self.r_icp;
+                data.extend(
+                    pts.iter()
+                        .zip(&remaining)
+                        .filter(|(q, r)| **r && (q.coords - p_hat).norm_squared() <= r2)
+                        .map(|(q, _)| *q),
+                );
+                init = Pose2::new(p_hat.x, p_hat.y, tr.alpha);
+            }
+            if data.len() < 3 {
+                continue; // delete: nothing to match
+            }
+            let (pose, rms) = self.detector.fit(&data, init);
+            let removed = self.detector.remove_inside(&pose, pts, &mut remaining);
+            if removed < self.detector.min_num_point || rms > self.detector.d_m_matching {
+                continue; // delete
+            }
+            let p_new = Vector2::new(pose.x, pose.y);
+            let g = self.gate.distance2(
+                &PvState {
+                    pos: tr.p,
+                    vel: tr.v,
+                },
+                &p_new,
+                dt,
+            );
+            if g <= 1.0 && dt > 0.0 {
+                tr.v = Some((p_new - tr.p) / dt);
+                tr.p = p_new;
+                tr.alpha = pose.theta;
+                tr.t_last = t;
+                tr.age += 1;
+                tr.rms = rms;
+                tr.support = removed;
+                keep.push(tr);
+            } else {
+                replacements.push((pose, rms, removed));
+            }
+        }
+        for (pose, rms, support) in replacements {
+            let id = self.new_id();
+            keep.push(T1Track {
+                id,
+                p: Vector2::new(pose.x, pose.y),
+                v: None,
+                alpha: pose.theta,
+                t_last: t,
+                age: 0,
+                rms,
+                support,
+            });
+            rows.push(row_of(keep.last(), true, true));
+        }
+        for fit in self.detector.detect_new(pts, &cl, &mut remaining) {
+            let id = self.new_id();
+            keep.push(T1Track {
+                id,
+                p: Vector2::new(fit.pose.x, fit.pose.y),
+                v: None,
+                alpha: fit.pose.theta,
+                t_last: t,
+                age: 0,
+                rms: fit.rms,
+                support: fit.support,
+            });
+            rows.push(row_of(keep.last(), true, false));
+        }
+        keep.sort_by_key(|k| k.id);
+        // rows for the updated tracks (born ones already have theirs)
+        for tr in &keep {
+            if tr.age > 0 {
+                rows.push(row_of(Some(tr), false, false));
+            }
+        }
+        rows.sort_by_key(|r| r.id);
+        self.tracks = keep;
+        let reports = rows
+            .iter()
+            .map(|r| {
+                let vk = self.tracks.iter().any(|k| k.id == r.id && k.v.is_some());
+                report(stamp, r, vk)
+            })
+            .collect();
+        self.last = rows;
+        Ok(reports)
+    }
+}
+
+fn row_of(tr: Option<&T1Track>, born: bool, gate_replaced: bool) -> LidarTrack {
+    let Some(tr) = tr else {
+        return LidarTrack {
+            id: u32::MAX,
+            x: f64::NAN,
+            y: f64::NAN,
+            alpha: 0.0,
+            vx: 0.0,
+            vy: 0.0,
+            support: 0,
+            rms: f64::INFINITY,
+            born,
+            gate_replaced,
+        };
+    };
+    let v = tr.v.unwrap_or_else(Vector2::zeros);
+    LidarTrack {
+        id: tr.id,
+        x: tr.p.x,
+        y: tr.p.y,
+        alpha: tr.alpha,
+        vx: v.x,
+        vy: v.y,
+        support: tr.support,
+        rms: tr.rms,
+        born,
+        gate_replaced,
+    }
+}
+
+impl<C: Clusterer, R: Registration2, G: Gate<PvState, Vector2<f64>>> MultiTargetTracker
+    for Table1Tracker<C, R, G>
+{
+    type Input = FusedPoints;
+    type Error = TrackerError;
+    fn step(
+        &mut self,
+        stamp: Stamp,
+        input: &FusedPoints,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        self.process(stamp, input)
+    }
+}
+
+#[derive(Debug, Clone)]
+struct KfTrack {
+    id: u32,
+    kf: Ekf<4, 2, ConstantVelocity2, Position2>,
+    rec: MOfNRecord,
+    misses: u32,
+    alpha: f64,
+    rms: f64,
+    support: usize,
+    reported: bool,
+}
+
+/// The `kf-gnn` baseline (spec §2.9): the same detector, a CV Kalman filter per track, a χ²
+/// innovation gate, Hungarian GNN and M-of-N confirmation.
+#[derive(Debug, Clone)]
+pub struct KfGnnTracker<C, R> {
+    /// The detector.
+    pub detector: ContourDetector<C, R>,
+    motion: ConstantVelocity2,
+    meas: Position2,
+    gamma: f64,
+    sigma_r: f64,
+    life: MOfN,
+    max_coast_report: u32,
+    tracks: Vec<KfTrack>,
+    next_id: u32,
+    t_last: Option<TimeUs>,
+    last: Vec<LidarTrack>,
+}
+
+impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
+    /// A tracker with the `kf-gnn` parameters of `cfg`.
+    pub fn new(
+        detector: ContourDetector<C, R>,
+        cfg: &LidarPeopleConfig,
+    ) -> Result<Self, TrackerError> {
+        let motion = ConstantVelocity2::cwna(cfg.kf_q).map_err(CoreError::from)?;
+        let meas = Position2::isotropic(cfg.kf_sigma_r).map_err(CoreError::from)?;
+        let life = MOfN::new(cfg.kf_m, cfg.kf_n, cfg.kf_n_del)?;
+        Ok(Self {
+            detector,
+            motion,
+            meas,
+            gamma: cfg.kf_gamma,
+            sigma_r: cfg.kf_sigma_r,
+            life,
+            max_coast_report: cfg.kf_max_coast_report,
+            tracks: Vec::new(),
+            next_id: 0,
+            t_last: None,
+            last: Vec::new(),
+        })
+    }
+
+    /// The rows of the last processed frame.
+    pub fn last_rows(&self) -> &[LidarTrack] {
+        &self.last
+    }
+
+    /// Processes one fused frame.
+    pub fn process(
+        &mut self,
+        stamp: Stamp,
+        frame: &FusedPoints,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        if frame.no_data {
+            self.last.clear();
+            return Ok(Vec::new());
+        }
+        let pts = &frame.points;
+        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
+            return Err(CoreError::NonFinite {
+                what: "fused frame points",
+            }
+            .into());
+        }
+        let t = frame.t;
+        let dt = self.t_last.map_or(0.0, |t0| t.secs_since(t0)).max(0.0);
+        self.t_last = Some(t);
+        let cl = if pts.is_empty() {
+            Clustering::default()
+        } else {
+            self.detector.clusterer.cluster(pts)?
+        };
+        let mut remaining = vec![true; pts.len()];
+        let dets = self.detector.detect_new(pts, &cl, &mut remaining);
+        for tr in &mut self.tracks {
+            if dt > 0.0 {
+                tr.kf.predict(&(), dt).map_err(CoreError::from)?;
+            }
+        }
+        let n = self.tracks.len();
+        let m = dets.len();
+        let mut cost = DMatrix::from_element(n, m, f64::INFINITY);
+        for (i, tr) in self.tracks.iter().enumerate() {
+            for (j, d) in dets.iter().enumerate() {
+                if let Ok(inn) = tr.kf.innovation(&Vector2::new(d.pose.x, d.pose.y)) {
+                    let c = inn.nis;
+                    if c.is_finite() && c <= self.gamma {
+                        cost[(i, j)] = c;
+                    }
+                }
+            }
+        }
+        let assignment = if n > 0 && m > 0 {
+            quarry_assoc::assign::hungarian_with_miss(&cost, &vec![self.gamma; n])
+                .map_err(CoreError::from)?
+                .row_to_col
+        } else {
+            vec![None; n]
+        };
+        let mut used = vec![false; m];
+        for (i, tr) in self.tracks.iter_mut().enumerate() {
+            match assignment.get(i).copied().flatten() {
+                Some(j) if cost[(i, j)].is_finite() => {
+                    used[j] = true;
+                    let d = &dets[j];
+                    tr.kf
+                        .update(&Vector2::new(d.pose.x, d.pose.y))
+                        .map_err(CoreError::from)?;
+                    tr.misses = 0;
+                    tr.alpha = d.pose.theta;
+                    tr.rms = d.rms;
+                    tr.support = d.support;
+                    self.life.observe(&mut tr.rec, &ScanObservation::hit());
+                }
+                _ => {
+                    tr.misses += 1;
+                    self.life.observe(&mut tr.rec, &ScanObservation::miss());
+                }
+            }
+        }
+        self.tracks
+            .retain(|tr| self.life.state(&tr.rec) != TrackState::Deleted);
+        let s2 = self.sigma_r * self.sigma_r;
+        for (j, d) in dets.iter().enumerate() {
+            if used[j] {
+                continue;
+            }
+            let x0 = Vector4::new(d.pose.x, d.pose.y, 0.0, 0.0);
+            let p0 = Matrix4::from_diagonal(&Vector4::new(s2, s2, 1.0, 1.0));
+            let g = Gaussian::try_new(x0, p0)?;
+            let kf = Ekf::new(g, self.motion, self.meas).map_err(CoreError::from)?;
+            let id = self.next_id;
+            self.next_id += 1;
+            self.tracks.push(KfTrack {
+                id,
+                kf,
+                rec: self.life.birth(),
+                misses: 0,
+                alpha: d.pose.theta,
+                rms: d.rms,
+                support: d.support,
+                reported: false,
+            });
+        }
+        let mut rows = Vec::new();
+        let mut reports = Vec::new();
+        for tr in &mut self.tracks {
+            if self.life.state(&tr.rec) != TrackState::Confirmed
+                || tr.misses > self.max_coast_report
+            {
+                continue;
+            }
+            let x = tr.kf.mean();
+            let row = LidarTrack {
+                id: tr.id,
+                x: x[0],
+                y: x[1],
+                alpha: tr.alpha,
+                vx: x[2],
+                vy: x[3],
+                support: if tr.misses == 0 { tr.support } else { 0 },
+                rms: tr.rms,
+                born: !tr.reported,
+                gate_replaced: false,
+            };
+            tr.reported = true;
+            let mut r = report(stamp, &row, true);
+            if tr.misses > 0 {
+                r.status = TrackStatus::Coasting;
+            }
+            let c: Matrix4<f64> = *tr.kf.cov();
+            if let Some(st) = r.state.as_mut() {
+                let mut cov = DMatrix::zeros(5, 5);
+                cov.view_mut((0, 0), (4, 4)).copy_from(&c);
+                cov[(4, 4)] = 1.0;
+                st.cov = Some(cov);
+            }
+            reports.push(r);
+            rows.push(row);
+        }
+        self.last = rows;
+        Ok(reports)
+    }
+}
+
+impl<C: Clusterer, R: Registration2> MultiTargetTracker for KfGnnTracker<C, R> {
+    type Input = FusedPoints;
+    type Error = TrackerError;
+    fn step(
+        &mut self,
+        stamp: Stamp,
+        input: &FusedPoints,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        self.process(stamp, input)
+    }
+}
