@@ -9,6 +9,8 @@
 //! ```
 
 mod error;
-pub mod lidar_people;
+/// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
+pub mod jpda;
+pub mod slamot;
 
 pub use error::TrackerError;
