@@ -648,7 +648,9 @@ fn hota_prepared(ev: &MotEvaluation) -> Result<Hota, EvalError> {
         })
         .collect();
 
-    let mut matches = vec![vec![0.0f64; n_gt * n_hyp]; 19];
+    // matched-pair counts per alpha, sparse (most id pairs never match)
+    let mut matches: std::collections::BTreeMap<usize, [f64; 19]> =
+        std::collections::BTreeMap::new();
     let mut score = Vec::new();
     for f in &ev.frames {
         let (no, nh) = (f.gt.len(), f.hyp.len());
@@ -678,7 +680,9 @@ fn hota_prepared(ev: &MotEvaluation) -> Result<Hota, EvalError> {
                 if s >= alpha - EPS {
                     n += 1;
                     loca[a] += s;
-                    matches[a][f.gt[i] * n_hyp + f.hyp[j]] += 1.0;
+                    matches
+                        .entry(f.gt[i] * n_hyp + f.hyp[j])
+                        .or_insert([0.0; 19])[a] += 1.0;
                 }
             }
             tp[a] += n;
@@ -693,7 +697,8 @@ fn hota_prepared(ev: &MotEvaluation) -> Result<Hota, EvalError> {
         let mut sa = 0.0;
         let mut sr = 0.0;
         let mut sp = 0.0;
-        for (k, &mc) in matches[a].iter().enumerate() {
+        for (&k, counts) in &matches {
+            let mc = counts[a];
             if mc == 0.0 {
                 continue;
             }

@@ -65,6 +65,8 @@ pub struct GtRow {
     pub class: Option<i64>,
     /// MOT16+ visibility ratio in `[0, 1]`; `None` in MOT15-style files.
     pub visibility: Option<f64>,
+    /// World coordinates `(x, y)` (columns 8-9) of MOT15-style files that have them.
+    pub world_xy: Option<[f64; 2]>,
 }
 
 /// Which ground-truth layout a file uses.
@@ -228,6 +230,10 @@ pub fn read_gt(text: &str, style: GtStyle) -> Result<Vec<GtRow>, EvalError> {
         } else {
             (None, None)
         };
+        let world_xy = match (mot16, row.extra[0], row.extra[1]) {
+            (false, Some(x), Some(y)) => Some([x, y]),
+            _ => None,
+        };
         out.push(GtRow {
             frame: row.frame,
             id: row.id,
@@ -235,6 +241,7 @@ pub fn read_gt(text: &str, style: GtStyle) -> Result<Vec<GtRow>, EvalError> {
             consider: row.conf != 0.0,
             class,
             visibility,
+            world_xy,
         });
     }
     Ok(out)
@@ -295,6 +302,67 @@ pub fn to_frames(
     res: &[MotRow],
     iou_threshold: f64,
 ) -> Result<Vec<Frame<Ltwh>>, EvalError> {
+    Ok(select(gt, res, iou_threshold)?
+        .into_iter()
+        .map(|(g, r)| Frame {
+            gt: g.iter().map(|g| (g.id, g.bbox)).collect(),
+            hyp: r.iter().map(|r| (r.id, r.bbox)).collect(),
+        })
+        .collect())
+}
+
+/// Like [`to_frames`], but each object is the world position `(x, y)` of columns 8-9 (for
+/// ground-plane evaluation with [`crate::Euclidean`]). Ignored rows are removed as in
+/// [`to_frames`] (by box overlap); a kept row without world coordinates (a MOT16-style ground
+/// truth, or fewer than 9 columns) is an error.
+pub fn to_point_frames(
+    gt: &[GtRow],
+    res: &[MotRow],
+    iou_threshold: f64,
+) -> Result<Vec<Frame<[f64; 2]>>, EvalError> {
+    let missing = |which: &str, frame: u64, id: i64| {
+        EvalError::from(quarry_core::CoreError::invalid(
+            "world coordinates",
+            format!("{which} row (frame {frame}, id {id}) has no world x, y (columns 8-9)"),
+        ))
+    };
+    select(gt, res, iou_threshold)?
+        .into_iter()
+        .map(|(g, r)| {
+            Ok(Frame {
+                gt: g
+                    .iter()
+                    .map(|g| {
+                        g.world_xy
+                            .map(|w| (g.id, w))
+                            .ok_or_else(|| missing("ground-truth", g.frame, g.id))
+                    })
+                    .collect::<Result<_, _>>()?,
+                hyp: r
+                    .iter()
+                    .map(|r| match (r.extra[0], r.extra[1]) {
+                        (Some(x), Some(y)) => Ok((r.id, [x, y])),
+                        _ => Err(missing("result", r.frame, r.id)),
+                    })
+                    .collect::<Result<_, _>>()?,
+            })
+        })
+        .collect()
+}
+
+/// The rows kept in each frame (see [`to_frames`]).
+fn select<'a>(
+    gt: &'a [GtRow],
+    res: &'a [MotRow],
+    iou_threshold: f64,
+) -> Result<Vec<(Vec<&'a GtRow>, Vec<&'a MotRow>)>, EvalError> {
+    if !(iou_threshold > 0.0 && iou_threshold <= 1.0) {
+        return Err(quarry_core::CoreError::invalid(
+            "iou_threshold",
+            format!("must lie in (0, 1], got {iou_threshold}"),
+        )
+        .into());
+    }
     let mut by_frame: BTreeMap<u64, (Vec<&GtRow>, Vec<&MotRow>)> = BTreeMap::new();
     for g in gt {
         by_frame.entry(g.frame).or_default().0.push(g);
@@ -303,7 +371,7 @@ pub fn to_frames(
         by_frame.entry(r.frame).or_default().1.push(r);
     }
     let mut frames = Vec::with_capacity(by_frame.len());
-    for (gts, rs) in by_frame.values() {
+    for (gts, rs) in by_frame.into_values() {
         let ignored: Vec<bool> = gts
             .iter()
             .map(|g| !g.consider || g.class.is_some_and(|c| DISTRACTOR_CLASSES.contains(&c)))
@@ -328,20 +396,19 @@ pub fn to_frames(
                 }
             }
         }
-        frames.push(Frame {
-            gt: gts
-                .iter()
-                .zip(&ignored)
-                .filter(|(g, ign)| !**ign && g.class.is_none_or(|c| c == 1))
-                .map(|(g, _)| (g.id, g.bbox))
-                .collect(),
-            hyp: rs
-                .iter()
-                .zip(&drop_res)
-                .filter(|(_, d)| !**d)
-                .map(|(r, _)| (r.id, r.bbox))
-                .collect(),
-        });
+        let g: Vec<&GtRow> = gts
+            .iter()
+            .zip(&ignored)
+            .filter(|(g, ign)| !**ign && g.class.is_none_or(|c| c == 1))
+            .map(|(g, _)| *g)
+            .collect();
+        let r: Vec<&MotRow> = rs
+            .iter()
+            .zip(&drop_res)
+            .filter(|(_, d)| !**d)
+            .map(|(r, _)| *r)
+            .collect();
+        frames.push((g, r));
     }
     Ok(frames)
 }
@@ -399,6 +466,22 @@ mod tests {
         assert_eq!(f.len(), 1);
         assert_eq!(f[0].gt.iter().map(|p| p.0).collect::<Vec<_>>(), vec![1]);
         assert_eq!(f[0].hyp.iter().map(|p| p.0).collect::<Vec<_>>(), vec![7, 9]);
+    }
+
+    #[test]
+    fn world_points_need_world_columns() {
+        let gt = read_gt("1,1,0,0,10,10,1,2.5,3.5,0\n", GtStyle::Auto).unwrap();
+        assert_eq!(gt[0].world_xy, Some([2.5, 3.5]));
+        let res = read_results("1,4,0,0,10,10,1,2.0,3.0,-1\n").unwrap();
+        let f = to_point_frames(&gt, &res, 0.5).unwrap();
+        assert_eq!(f[0].gt, vec![(1, [2.5, 3.5])]);
+        assert_eq!(f[0].hyp, vec![(4, [2.0, 3.0])]);
+        let res6 = read_results("1,4,0,0,10,10\n").unwrap();
+        let e = to_point_frames(&gt, &res6, 0.5).unwrap_err();
+        assert!(e.to_string().contains("frame 1, id 4"), "{e}");
+        let gt16 = read_gt("1,1,0,0,10,10,1,1,1\n", GtStyle::Auto).unwrap();
+        assert!(to_point_frames(&gt16, &res, 0.5).is_err());
+        assert!(to_frames(&gt, &res, 0.0).is_err());
     }
 
     #[test]
