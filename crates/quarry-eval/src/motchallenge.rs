@@ -350,12 +350,15 @@ pub fn to_point_frames(
         .collect()
 }
 
+/// The ground-truth and result rows kept in one frame.
+type KeptRows<'a> = (Vec<&'a GtRow>, Vec<&'a MotRow>);
+
 /// The rows kept in each frame (see [`to_frames`]).
 fn select<'a>(
     gt: &'a [GtRow],
     res: &'a [MotRow],
     iou_threshold: f64,
-) -> Result<Vec<(Vec<&'a GtRow>, Vec<&'a MotRow>)>, EvalError> {
+) -> Result<Vec<KeptRows<'a>>, EvalError> {
     if !(iou_threshold > 0.0 && iou_threshold <= 1.0) {
         return Err(quarry_core::CoreError::invalid(
             "iou_threshold",
