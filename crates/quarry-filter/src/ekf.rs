@@ -91,13 +91,15 @@ impl<const D: usize, const Z: usize> MeasurementPrediction<D, Z> {
             return Err(FilterError::InnovationNotPositiveDefinite);
         }
         let chol = Cholesky::new(s).ok_or(FilterError::InnovationNotPositiveDefinite)?;
-        let log_det: f64 = 2.0
-            * chol
-                .l_dirty()
-                .diagonal()
-                .iter()
-                .map(|v| v.ln())
-                .sum::<f64>();
+        // ln det S = 2 ln Π L_ii: one logarithm, falling back to a sum of logarithms when the
+        // product under- or overflows.
+        let diag = chol.l_dirty().diagonal();
+        let prod: f64 = diag.iter().product();
+        let log_det = if prod.is_normal() {
+            2.0 * prod.ln()
+        } else {
+            2.0 * diag.iter().map(|v| v.ln()).sum::<f64>()
+        };
         if !log_det.is_finite() {
             return Err(FilterError::InnovationNotPositiveDefinite);
         }

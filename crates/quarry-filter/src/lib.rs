@@ -36,6 +36,7 @@
 //!   multinomial / residual resampling.
 //! - [`store`]: per-particle landmark maps, [`store::PersistentStore`] (Arc-shared tree, O(1)
 //!   copy, O(log M) write) and [`store::VecStore`].
+//! - [`rbpf`]: the FastSLAM 1.0 per-particle landmark kernels ([`rbpf::fastslam1`]).
 //!
 //! [`Gaussian`]: quarry_core::Gaussian
 //! [`MotionModel`]: quarry_core::MotionModel
@@ -46,6 +47,7 @@ mod error;
 pub mod models;
 pub mod particles;
 pub mod pda;
+pub mod rbpf;
 pub mod store;
 
 pub use ekf::{Ekf, Innovation, UpdateForm};
