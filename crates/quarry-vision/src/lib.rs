@@ -1,11 +1,39 @@
 //! # quarry-vision
 //!
-//! Pixel-level building blocks for vision trackers.
+//! Pixel-level building blocks for vision trackers: f32/f64 images and an OpenCV-exact
+//! separable Gaussian blur ([`blur`], [`convert`]), the regular ramp overlay ([`ramp`]), regional
+//! minima ([`minima`]), priority-flood (Meyer) watershed without lines ([`watershed`]), region
+//! adjacency and statistics ([`adjacency`]), region mapping between frames ([`mapping`]), minimum
+//! trajectories and the moving-point test ([`motion`]), SIFT ([`sift`]) and descriptor matching
+//! ([`matching`]).
 //!
 //! ```
-//! use quarry_core::Plane;
-//! let p = Plane::new(4, 3, 0u8);
-//! assert_eq!(p.len(), 12);
+//! use quarry_core::{Plane, Segmenter};
+//! use quarry_vision::{MinimumTrajectories, RampBlurWatershed, RegionAdjacency, RegionMapping};
+//!
+//! // Two dark discs on a bright background; in the second frame both moved 2 px to the right.
+//! let frame = |dx: f64| {
+//!     Plane::from_fn(96, 48, |x, y| {
+//!         let d = |cx: f64| (f64::from(x) - cx - dx).hypot(f64::from(y) - 24.0);
+//!         if d(24.0) < 9.0 || d(70.0) < 9.0 { 30u8 } else { 220 }
+//!     })
+//! };
+//! let segmenter = RampBlurWatershed::new(4.0); // ramp, f64 blur sigma 4, minima, watershed
+//! let a = segmenter.segment(&frame(0.0))?;
+//! let b = segmenter.segment(&frame(2.0))?;
+//! // every pixel has a region, each region grew from exactly one minimum
+//! assert!(a.labels.data.iter().all(|&l| l >= 1 && l as usize <= a.n_regions()));
+//! let disc = *a.labels.get(24, 24).unwrap();
+//! let other = *a.labels.get(70, 24).unwrap();
+//! assert_ne!(disc, other);
+//! assert!(RegionAdjacency::from_segmentation(&a)?.of(disc).len() >= 1);
+//! // the discs' regions persist from one frame to the next
+//! let map = RegionMapping::new(&a, &b)?;
+//! assert_eq!(map.successor(disc).map(|s| s.0), Some(*b.labels.get(26, 24).unwrap()));
+//! let mut traj = MinimumTrajectories::new(10, &a)?;
+//! traj.advance(&map, &b)?;
+//! assert!(traj.trajectories.iter().any(|t| t.len() == 2));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 pub mod adjacency;
