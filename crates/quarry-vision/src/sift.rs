@@ -332,10 +332,23 @@ impl FeatureExtractor for Sift {
     }
 }
 
-/// Rounds half to even, as OpenCV's `cvRound`.
+/// Rounds half to even, as OpenCV's `cvRound` (for |v| < 2^22; larger values are already
+/// integers and are returned by a plain cast).
 #[inline]
 fn cv_round(v: f32) -> i32 {
-    v.round_ties_even() as i32
+    const MAGIC: f32 = 12_582_912.0; // 1.5·2^23
+    if v.abs() < 4_194_304.0 {
+        ((v + MAGIC) - MAGIC) as i32
+    } else {
+        v as i32
+    }
+}
+
+/// floor(v) for |v| < 2^31 without a libm call (the baseline x86-64 target has no `roundps`).
+#[inline]
+fn floor_small(v: f32) -> f32 {
+    let t = v as i32 as f32;
+    if t > v { t - 1.0 } else { t }
 }
 
 /// OpenCV's `fastAtan2`: atan2(y, x) in degrees in [0, 360), polynomial approximation.
@@ -506,38 +519,84 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
     })
 }
 
-/// Is the DoG value at (layer, r, c) an extremum of its 3×3×3 block above the pre-threshold?
 #[inline]
-fn is_extremum(dog: &[Plane<f32>], layer: usize, r: usize, c: usize, w: usize, thr: f32) -> bool {
-    let cur = &dog[layer].data;
-    let idx = r * w + c;
-    let val = cur[idx];
-    if val.abs() <= thr {
-        return false;
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+#[inline]
+fn fmin(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// Maximum and minimum of the 3×3 block centred on each pixel of row `r` (1 ≤ r < h − 1) of a
+/// `w`-wide plane, for columns 1..w−1 (entries 0 and w−1 are left untouched). Branch-free over
+/// whole rows so it vectorises.
+fn block3_row(
+    p: &[f32],
+    w: usize,
+    r: usize,
+    vmax: &mut [f32],
+    vmin: &mut [f32],
+    mx: &mut [f32],
+    mn: &mut [f32],
+) {
+    let a = &p[(r - 1) * w..r * w];
+    let b = &p[r * w..(r + 1) * w];
+    let c = &p[(r + 1) * w..(r + 2) * w];
+    for (((hi, lo), (&x, &y)), &z) in vmax
+        .iter_mut()
+        .zip(vmin.iter_mut())
+        .zip(a.iter().zip(b))
+        .zip(c)
+    {
+        *hi = fmax(fmax(x, y), z);
+        *lo = fmin(fmin(x, y), z);
     }
-    let prev = &dog[layer - 1].data;
-    let next = &dog[layer + 1].data;
-    let offs = [
-        idx - w - 1,
-        idx - w,
-        idx - w + 1,
-        idx - 1,
-        idx + 1,
-        idx + w - 1,
-        idx + w,
-        idx + w + 1,
-    ];
-    if val > 0.0 {
-        offs.iter().all(|&o| val >= cur[o])
-            && prev[idx] <= val
-            && next[idx] <= val
-            && offs.iter().all(|&o| val >= prev[o] && val >= next[o])
-    } else {
-        offs.iter().all(|&o| val <= cur[o])
-            && prev[idx] >= val
-            && next[idx] >= val
-            && offs.iter().all(|&o| val <= prev[o] && val <= next[o])
+    for (k, (hi, lo)) in mx[1..w - 1]
+        .iter_mut()
+        .zip(mn[1..w - 1].iter_mut())
+        .enumerate()
+    {
+        *hi = fmax(fmax(vmax[k], vmax[k + 1]), vmax[k + 2]);
+        *lo = fmin(fmin(vmin[k], vmin[k + 1]), vmin[k + 2]);
     }
+}
+
+/// Columns of row `r` of DoG `layer` that are extrema of their 3×3×3 block (non-strict, as
+/// OpenCV: ≥ all 26 neighbours when positive, ≤ all when negative) with |D| > `thr`.
+fn scan_row_extrema(dog: &[Plane<f32>], layer: usize, r: usize, w: usize, thr: f32) -> Vec<usize> {
+    let mut buf = vec![0f32; 8 * w];
+    let (vmax, rest) = buf.split_at_mut(w);
+    let (vmin, rest) = rest.split_at_mut(w);
+    let (mx, rest) = rest.split_at_mut(w);
+    let (mn, rest) = rest.split_at_mut(w);
+    let (mx2, rest) = rest.split_at_mut(w);
+    let (mn2, rest) = rest.split_at_mut(w);
+    let (_, _) = rest.split_at_mut(w);
+    block3_row(&dog[layer - 1].data, w, r, vmax, vmin, mx, mn);
+    block3_row(&dog[layer].data, w, r, vmax, vmin, mx2, mn2);
+    for (((a, b), c), d) in mx
+        .iter_mut()
+        .zip(mn.iter_mut())
+        .zip(mx2.iter())
+        .zip(mn2.iter())
+    {
+        *a = fmax(*a, *c);
+        *b = fmin(*b, *d);
+    }
+    block3_row(&dog[layer + 1].data, w, r, vmax, vmin, mx2, mn2);
+    let cur = &dog[layer].data[r * w..(r + 1) * w];
+    let mut out = Vec::new();
+    for c in IMG_BORDER..w - IMG_BORDER {
+        let v = cur[c];
+        let hi = fmax(mx[c], mx2[c]);
+        let lo = fmin(mn[c], mn2[c]);
+        if (v > thr && v >= hi) || (v < -thr && v <= lo) {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// A refined extremum.
@@ -708,7 +767,7 @@ fn orientation_hist(
             let idx = (y * w + x) as usize;
             let dx = d[idx + 1] - d[idx - 1];
             let dy = d[idx - w as usize] - d[idx + w as usize];
-            let wgt = (((i * i + j * j) as f32) * expf_scale).exp();
+            let wgt = fast_exp(((i * i + j * j) as f32) * expf_scale);
             let ori = fast_atan2(dy, dx);
             let mag = (dx * dx + dy * dy).sqrt();
             let mut bin = cv_round((n as f32 / 360.0) * ori);
@@ -785,8 +844,8 @@ fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
         }
         for layer in 1..=s {
             let scan_row = |r: usize| -> Vec<(usize, usize, usize, usize)> {
-                (IMG_BORDER..w - IMG_BORDER)
-                    .filter(|&c| is_extremum(&oct.dog, layer, r, c, w, thr))
+                scan_row_extrema(&oct.dog, layer, r, w, thr)
+                    .into_iter()
                     .map(|c| (o, layer, r, c))
                     .collect()
             };
@@ -893,6 +952,48 @@ fn descriptor_job(ss: &ScaleSpace, kp: &Keypoint) -> Result<DescriptorJob, Visio
     ))
 }
 
+/// Gathered descriptor samples (structure of arrays).
+struct Samples {
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    rbin: Vec<f32>,
+    cbin: Vec<f32>,
+    w: Vec<f32>,
+}
+
+impl Samples {
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            dx: Vec::with_capacity(n),
+            dy: Vec::with_capacity(n),
+            rbin: Vec::with_capacity(n),
+            cbin: Vec::with_capacity(n),
+            w: Vec::with_capacity(n),
+        }
+    }
+}
+
+/// exp(x) for f32 without a libm call (Cephes `expf` polynomial, relative error ≈ 1e-7, as
+/// OpenCV's `exp32f`); branch-free so loops over arrays vectorise. Valid for x in [−87, 88].
+#[inline]
+pub(crate) fn fast_exp(x: f32) -> f32 {
+    const LOG2E: f32 = std::f32::consts::LOG2_E;
+    const C1: f32 = 0.693_359_4;
+    const C2: f32 = -2.121_944_4e-4;
+    const MAGIC: f32 = 12_582_912.0; // 1.5·2^23: adding it rounds to an integer
+    let x = x.clamp(-87.0, 88.0);
+    let t = x * LOG2E + MAGIC;
+    let n = t - MAGIC;
+    let g = x - n * C1 - n * C2;
+    let p = ((((1.987_569_1e-4 * g + 1.398_199_9e-3) * g + 8.333_452e-3) * g + 4.166_579_6e-2) * g
+        + 0.166_666_65)
+        * g
+        + 0.5;
+    let y = p * g * g + g + 1.0;
+    let e = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
+    y * f32::from_bits(((e + 127) << 23) as u32)
+}
+
 /// The raw 128-bin histogram (OpenCV's `calcSIFTDescriptor` before normalisation).
 fn raw_descriptor(
     img: &Plane<f32>,
@@ -921,17 +1022,23 @@ fn raw_descriptor(
     let mut hist = [0f32; (D + 2) * (D + 2) * (N + 2)];
     let data = &img.data;
     let half = D as f32 / 2.0 - 0.5;
+    // Pass 1 gathers the samples inside the rotated window, pass 2 evaluates exp, atan2 and
+    // the magnitude over whole arrays (vectorisable), pass 3 accumulates (OpenCV's structure).
+    let side = (2 * radius + 1) as usize;
+    let mut s = Samples::with_capacity(side * side);
     for i in -radius..=radius {
         let r = py + i;
         if r <= 0 || r >= rows - 1 {
             continue;
         }
+        let fi = i as f32;
+        let row = (r * cols) as usize;
         for j in -radius..=radius {
             let c = px + j;
             if c <= 0 || c >= cols - 1 {
                 continue;
             }
-            let (fi, fj) = (i as f32, j as f32);
+            let fj = j as f32;
             let c_rot = fj * cos_t - fi * sin_t;
             let r_rot = fj * sin_t + fi * cos_t;
             let rbin = r_rot + half;
@@ -939,50 +1046,62 @@ fn raw_descriptor(
             if !(rbin > -1.0 && rbin < D as f32 && cbin > -1.0 && cbin < D as f32) {
                 continue;
             }
-            let idx = (r * cols + c) as usize;
-            let dx = data[idx + 1] - data[idx - 1];
-            let dy = data[idx - cols as usize] - data[idx + cols as usize];
-            let wgt = ((c_rot * c_rot + r_rot * r_rot) * exp_scale).exp();
-            let ang = fast_atan2(dy, dx);
-            let mag = (dx * dx + dy * dy).sqrt() * wgt;
-            let obin = (ang - ori) * bins_per_rad;
-            let r0 = rbin.floor();
-            let c0 = cbin.floor();
-            let o0f = obin.floor();
-            let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
-            let (r0, c0) = (r0 as i32, c0 as i32);
-            let mut o0 = o0f as i32;
-            if o0 < 0 {
-                o0 += N as i32;
-            }
-            if o0 >= N as i32 {
-                o0 -= N as i32;
-            }
-            let v_r1 = mag * rf;
-            let v_r0 = mag - v_r1;
-            let v_rc11 = v_r1 * cf;
-            let v_rc10 = v_r1 - v_rc11;
-            let v_rc01 = v_r0 * cf;
-            let v_rc00 = v_r0 - v_rc01;
-            let v_rco111 = v_rc11 * of;
-            let v_rco110 = v_rc11 - v_rco111;
-            let v_rco101 = v_rc10 * of;
-            let v_rco100 = v_rc10 - v_rco101;
-            let v_rco011 = v_rc01 * of;
-            let v_rco010 = v_rc01 - v_rco011;
-            let v_rco001 = v_rc00 * of;
-            let v_rco000 = v_rc00 - v_rco001;
-            let idx = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
-            let rs = (D + 2) * (N + 2);
-            hist[idx] += v_rco000;
-            hist[idx + 1] += v_rco001;
-            hist[idx + N + 2] += v_rco010;
-            hist[idx + N + 3] += v_rco011;
-            hist[idx + rs] += v_rco100;
-            hist[idx + rs + 1] += v_rco101;
-            hist[idx + rs + N + 2] += v_rco110;
-            hist[idx + rs + N + 3] += v_rco111;
+            let idx = row + c as usize;
+            s.dx.push(data[idx + 1] - data[idx - 1]);
+            s.dy.push(data[idx - cols as usize] - data[idx + cols as usize]);
+            s.rbin.push(rbin);
+            s.cbin.push(cbin);
+            s.w.push((c_rot * c_rot + r_rot * r_rot) * exp_scale);
         }
+    }
+    let n = s.dx.len();
+    let mut ori_v = vec![0f32; n];
+    let mut mag_v = vec![0f32; n];
+    for k in 0..n {
+        let (dx, dy) = (s.dx[k], s.dy[k]);
+        ori_v[k] = fast_atan2(dy, dx);
+        mag_v[k] = (dx * dx + dy * dy).sqrt() * fast_exp(s.w[k]);
+    }
+    for k in 0..n {
+        let (rbin, cbin) = (s.rbin[k], s.cbin[k]);
+        let mag = mag_v[k];
+        let obin = (ori_v[k] - ori) * bins_per_rad;
+        let r0 = floor_small(rbin);
+        let c0 = floor_small(cbin);
+        let o0f = floor_small(obin);
+        let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
+        let (r0, c0) = (r0 as i32, c0 as i32);
+        let mut o0 = o0f as i32;
+        if o0 < 0 {
+            o0 += N as i32;
+        }
+        if o0 >= N as i32 {
+            o0 -= N as i32;
+        }
+        let v_r1 = mag * rf;
+        let v_r0 = mag - v_r1;
+        let v_rc11 = v_r1 * cf;
+        let v_rc10 = v_r1 - v_rc11;
+        let v_rc01 = v_r0 * cf;
+        let v_rc00 = v_r0 - v_rc01;
+        let v_rco111 = v_rc11 * of;
+        let v_rco110 = v_rc11 - v_rco111;
+        let v_rco101 = v_rc10 * of;
+        let v_rco100 = v_rc10 - v_rco101;
+        let v_rco011 = v_rc01 * of;
+        let v_rco010 = v_rc01 - v_rco011;
+        let v_rco001 = v_rc00 * of;
+        let v_rco000 = v_rc00 - v_rco001;
+        let idx = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
+        let rs = (D + 2) * (N + 2);
+        hist[idx] += v_rco000;
+        hist[idx + 1] += v_rco001;
+        hist[idx + N + 2] += v_rco010;
+        hist[idx + N + 3] += v_rco011;
+        hist[idx + rs] += v_rco100;
+        hist[idx + rs + 1] += v_rco101;
+        hist[idx + rs + N + 2] += v_rco110;
+        hist[idx + rs + N + 3] += v_rco111;
     }
     let mut dst = [0f32; DESCRIPTOR_LEN];
     for i in 0..D {
@@ -1036,6 +1155,30 @@ mod tests {
             assert!(diff < 0.02, "{k}: {got} vs {want}");
         }
         assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn fast_exp_matches_exp() {
+        for k in 0..=4000 {
+            let x = -40.0 + k as f32 * 0.011;
+            let (got, want) = (fast_exp(x), x.exp());
+            assert!((got / want - 1.0).abs() < 3e-7, "{x}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn rounding_helpers() {
+        for v in [
+            -2.5f32, -1.5, -0.5, 0.5, 1.5, 2.5, 3.49, -3.51, 1e7, -1e7, 0.0,
+        ] {
+            assert_eq!(cv_round(v), v.round_ties_even() as i32, "{v}");
+            assert_eq!(floor_small(v), v.floor(), "{v}");
+        }
+        for k in -2000..2000 {
+            let v = k as f32 * 0.013;
+            assert_eq!(floor_small(v), v.floor());
+            assert_eq!(cv_round(v), v.round_ties_even() as i32);
+        }
     }
 
     #[test]
