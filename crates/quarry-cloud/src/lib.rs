@@ -34,8 +34,10 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod background;
+pub mod calib;
 pub mod cluster;
 pub mod contour;
+pub mod csv_scans;
 pub mod error;
 pub mod icp;
 pub mod kd;
