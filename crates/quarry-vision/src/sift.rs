@@ -363,22 +363,16 @@ pub(crate) fn fast_atan2(y: f32, x: f32) -> f32 {
     const DBL_EPS: f32 = f64::EPSILON as f32;
     let ax = x.abs();
     let ay = y.abs();
-    let mut a = if ax >= ay {
-        let c = ay / (ax + DBL_EPS);
-        let c2 = c * c;
-        (((P7 * c2 + P5) * c2 + P3) * c2 + P1) * c
-    } else {
-        let c = ax / (ay + DBL_EPS);
-        let c2 = c * c;
-        90.0 - (((P7 * c2 + P5) * c2 + P3) * c2 + P1) * c
-    };
-    if x < 0.0 {
-        a = 180.0 - a;
-    }
-    if y < 0.0 {
-        a = 360.0 - a;
-    }
-    a
+    // Branch-free form of OpenCV's code (same operations, so loops over arrays vectorise).
+    let swap = ax < ay;
+    let num = if swap { ax } else { ay };
+    let den = if swap { ay } else { ax };
+    let c = num / (den + DBL_EPS);
+    let c2 = c * c;
+    let p = (((P7 * c2 + P5) * c2 + P3) * c2 + P1) * c;
+    let a = if swap { 90.0 - p } else { p };
+    let a = if x < 0.0 { 180.0 - a } else { a };
+    if y < 0.0 { 360.0 - a } else { a }
 }
 
 /// Bilinear ×2 up-sampling with pixel-centre alignment (OpenCV `resize`, `INTER_LINEAR`).
@@ -532,6 +526,7 @@ fn fmin(a: f32, b: f32) -> f32 {
 /// Maximum and minimum of the 3×3 block centred on each pixel of row `r` (1 ≤ r < h − 1) of a
 /// `w`-wide plane, for columns 1..w−1 (entries 0 and w−1 are left untouched). Branch-free over
 /// whole rows so it vectorises.
+#[inline]
 fn block3_row(
     p: &[f32],
     w: usize,
@@ -565,15 +560,20 @@ fn block3_row(
 
 /// Columns of row `r` of DoG `layer` that are extrema of their 3×3×3 block (non-strict, as
 /// OpenCV: ≥ all 26 neighbours when positive, ≤ all when negative) with |D| > `thr`.
-fn scan_row_extrema(dog: &[Plane<f32>], layer: usize, r: usize, w: usize, thr: f32) -> Vec<usize> {
-    let mut buf = vec![0f32; 8 * w];
+fn scan_row_extrema(
+    dog: &[Plane<f32>],
+    layer: usize,
+    r: usize,
+    w: usize,
+    thr: f32,
+    buf: &mut [f32],
+) -> Vec<usize> {
     let (vmax, rest) = buf.split_at_mut(w);
     let (vmin, rest) = rest.split_at_mut(w);
     let (mx, rest) = rest.split_at_mut(w);
     let (mn, rest) = rest.split_at_mut(w);
     let (mx2, rest) = rest.split_at_mut(w);
-    let (mn2, rest) = rest.split_at_mut(w);
-    let (_, _) = rest.split_at_mut(w);
+    let mn2 = &mut rest[..w];
     block3_row(&dog[layer - 1].data, w, r, vmax, vmin, mx, mn);
     block3_row(&dog[layer].data, w, r, vmax, vmin, mx2, mn2);
     for (((a, b), c), d) in mx
@@ -754,6 +754,14 @@ fn orientation_hist(
     let expf_scale = -1.0 / (2.0 * sigma * sigma);
     let mut raw = [0f32; ORI_HIST_BINS];
     let d = &img.data;
+    // Gather, then evaluate exp/atan2/sqrt over arrays (vectorisable), then accumulate.
+    let side = (2 * radius + 1).max(0) as usize;
+    let cap = side * side;
+    let (mut gx, mut gy, mut gw) = (
+        Vec::with_capacity(cap),
+        Vec::with_capacity(cap),
+        Vec::with_capacity(cap),
+    );
     for i in -radius..=radius {
         let y = r0 as i32 + i;
         if y <= 0 || y >= h - 1 {
@@ -765,20 +773,25 @@ fn orientation_hist(
                 continue;
             }
             let idx = (y * w + x) as usize;
-            let dx = d[idx + 1] - d[idx - 1];
-            let dy = d[idx - w as usize] - d[idx + w as usize];
-            let wgt = fast_exp(((i * i + j * j) as f32) * expf_scale);
-            let ori = fast_atan2(dy, dx);
-            let mag = (dx * dx + dy * dy).sqrt();
-            let mut bin = cv_round((n as f32 / 360.0) * ori);
-            if bin >= n as i32 {
-                bin -= n as i32;
-            }
-            if bin < 0 {
-                bin += n as i32;
-            }
-            raw[bin as usize] += wgt * mag;
+            gx.push(d[idx + 1] - d[idx - 1]);
+            gy.push(d[idx - w as usize] - d[idx + w as usize]);
+            gw.push(((i * i + j * j) as f32) * expf_scale);
         }
+    }
+    let mut ori = vec![0f32; gx.len()];
+    for (((o, wgt), &dx), &dy) in ori.iter_mut().zip(gw.iter_mut()).zip(&gx).zip(&gy) {
+        *o = fast_atan2(dy, dx) * (n as f32 / 360.0);
+        *wgt = fast_exp(*wgt) * (dx * dx + dy * dy).sqrt();
+    }
+    for (&o, &m) in ori.iter().zip(&gw) {
+        let mut bin = cv_round(o);
+        if bin >= n as i32 {
+            bin -= n as i32;
+        }
+        if bin < 0 {
+            bin += n as i32;
+        }
+        raw[bin as usize] += m;
     }
     let mut maxval = 0f32;
     for i in 0..n {
@@ -843,8 +856,10 @@ fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
             continue;
         }
         for layer in 1..=s {
-            let scan_row = |r: usize| -> Vec<(usize, usize, usize, usize)> {
-                scan_row_extrema(&oct.dog, layer, r, w, thr)
+            // `buf`: 6 scratch rows, reused across the rows a worker scans (never needs zeroing:
+            // every entry read is written first).
+            let scan_row = |buf: &mut Vec<f32>, r: usize| -> Vec<(usize, usize, usize, usize)> {
+                scan_row_extrema(&oct.dog, layer, r, w, thr, buf)
                     .into_iter()
                     .map(|c| (o, layer, r, c))
                     .collect()
@@ -853,10 +868,15 @@ fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
             let rows: Vec<Vec<_>> = (IMG_BORDER..h - IMG_BORDER)
                 .into_par_iter()
                 .with_min_len(8)
-                .map(scan_row)
+                .map_init(|| vec![0f32; 6 * w], scan_row)
                 .collect();
             #[cfg(not(feature = "parallel"))]
-            let rows: Vec<Vec<_>> = (IMG_BORDER..h - IMG_BORDER).map(scan_row).collect();
+            let rows: Vec<Vec<_>> = {
+                let mut buf = vec![0f32; 6 * w];
+                (IMG_BORDER..h - IMG_BORDER)
+                    .map(|r| scan_row(&mut buf, r))
+                    .collect()
+            };
             cands.extend(rows.into_iter().flatten());
         }
     }
