@@ -249,6 +249,10 @@ pub struct Residual;
 impl Systematic {
     /// Writes `weights.len()` ancestor indices into `out` (cleared first). The weights need not
     /// sum to 1 (they are scaled by their total); negative, NaN or all-zero weights are errors.
+    ///
+    /// Branch-light: instead of walking points and weights together, particle `j` receives the
+    /// points `u_k = U + k·step` with `C_{j−1} ≤ u_k < C_j`, i.e. indices
+    /// `⌈(C_{j−1} − U)/step⌉ .. ⌈(C_j − U)/step⌉`, filled as one slice per particle.
     pub fn resample_into(
         &self,
         weights: &[f64],
@@ -258,10 +262,29 @@ impl Systematic {
         let (total, last) = check_weights(weights)?;
         let n = weights.len();
         let step = total / n as f64;
+        let inv_step = n as f64 / total;
         let u0: f64 = rng.random::<f64>() * step;
         out.clear();
-        out.reserve(n);
-        walk(weights, last, (0..n).map(|k| u0 + k as f64 * step), out);
+        out.resize(n, last);
+        let mut c = 0.0;
+        let mut from = 0;
+        for (j, &w) in weights[..last].iter().enumerate() {
+            c += w;
+            // ⌈t⌉ without a libm call (t >= 0 after the guard; truncation then a correction).
+            let t = (c - u0) * inv_step;
+            let upto = if t > 0.0 {
+                let f = t as usize;
+                (if (f as f64) < t { f + 1 } else { f }).min(n)
+            } else {
+                0
+            };
+            if upto > from {
+                if let Some(s) = out.get_mut(from..upto) {
+                    s.fill(j);
+                }
+                from = upto;
+            }
+        }
         Ok(())
     }
 }

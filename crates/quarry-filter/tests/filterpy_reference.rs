@@ -1,6 +1,6 @@
 //! Our KF and EKF on `shared/bench-data` reproduce filterpy's final states.
 //!
-//! Reference numbers: computed once with filterpy 1.4.5 in the peer venv
+//! Reference numbers: computed once with filterpy 2.0.0 in the peer venv
 //! (`~/.cache/quarry-peers-venv`), replaying `kf_track.csv` with `KalmanFilter` and `ekf_rb.csv`
 //! with `ExtendedKalmanFilter` exactly as `shared/peers/bench_kf.py` / `bench_ekf.py` do (both use
 //! the Joseph form), and printing the final `x` and `P` (order [x, vx, y, vy]) with `repr`.
