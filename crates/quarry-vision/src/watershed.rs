@@ -8,13 +8,15 @@
 //! fully deterministic. There are no watershed lines: every pixel gets a label in 1..K
 //! ([`boundary_mask`] gives a display-only boundary).
 //!
-//! The queue is a radix heap on the order-preserving bits of the level with a FIFO for the
-//! current level: the same pop order as a binary heap on `(level.total_cmp, seq)` (tested), in
-//! amortised O(1) per pixel for the monotone keys of a flood.
+//! The queue is a hierarchical queue: coarse level buckets in front of a binary heap holding
+//! only the current bucket, with the same pop order as one binary heap on
+//! `(level.total_cmp, seq)` (tested).
 
 use crate::VisionError;
 use crate::minima::{Connectivity, Minima, Relief, check_relief, regional_minima};
 use quarry_core::{Plane, Segmentation};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 
 /// Options of [`flood`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -30,75 +32,97 @@ fn level_key(v: f64) -> u64 {
     if b >> 63 == 1 { !b } else { b | (1 << 63) }
 }
 
-/// A monotone radix heap over `(level: u64, seq)` with FIFO order among equal levels.
-///
-/// Buckets are indexed by the highest bit in which a level differs from the last popped level;
-/// bucket 0 holds the items at exactly the current level, in arrival (sequence) order. When it
-/// runs dry the lowest non-empty bucket is redistributed; the items that land in bucket 0 are
-/// sorted by sequence number, so the pop order equals that of a binary heap on `(level, seq)`.
-struct RadixHeap {
-    last: u64,
-    current: std::collections::VecDeque<(u64, u32)>,
-    buckets: Vec<Vec<(u64, u64, u32)>>,
-    nonempty: u128,
+/// Inverse of [`level_key`].
+#[inline]
+fn key_level(k: u64) -> f64 {
+    if k >> 63 == 1 {
+        f64::from_bits(k & !(1 << 63))
+    } else {
+        f64::from_bits(!k)
+    }
+}
+
+type Item = Reverse<(u64, u64, u32)>;
+
+/// A monotone priority queue over `(level, seq)` for the flood: a hierarchical queue of about
+/// n/64 coarse buckets (the level range split evenly) in front of an exact binary heap that
+/// holds only the current bucket. Flood levels never decrease, so the current bucket index only
+/// grows; items of later buckets wait in plain vectors. Pop order equals that of one binary heap
+/// on `(level.total_cmp, seq)` (tested), at O(1) per push and O(log m) per pop with m items per
+/// bucket.
+struct BucketQueue {
+    vmin: f64,
+    scale: f64,
+    buckets: Vec<Vec<Item>>,
+    cur: usize,
+    heap: BinaryHeap<Item>,
     seq: u64,
 }
 
-impl RadixHeap {
-    fn new() -> Self {
+impl BucketQueue {
+    fn new(vmin: f64, vmax: f64, n: usize) -> Self {
+        // few enough bucket headers to stay cache-resident, ~64 items per bucket on average
+        let nb = (n / 64).clamp(1, 1 << 16);
+        let range = vmax - vmin;
+        let scale = if range.is_finite() && range > 0.0 {
+            (nb - 1) as f64 / range
+        } else {
+            0.0
+        };
         Self {
-            last: 0,
-            current: std::collections::VecDeque::new(),
-            buckets: (0..65).map(|_| Vec::new()).collect(),
-            nonempty: 0,
+            vmin,
+            scale: if scale.is_finite() { scale } else { 0.0 },
+            buckets: (0..nb).map(|_| Vec::new()).collect(),
+            cur: 0,
+            heap: BinaryHeap::new(),
             seq: 0,
         }
     }
 
+    /// Pushes `v` at `level` (`key = level_key(level)`); `level` must not be below the last
+    /// popped level.
     #[inline]
-    fn push(&mut self, level: u64, v: u32) {
-        debug_assert!(level >= self.last);
+    fn push(&mut self, level: f64, key: u64, v: u32) {
         let seq = self.seq;
         self.seq += 1;
-        if level == self.last {
-            self.current.push_back((seq, v));
+        // monotone in `level` (IEEE subtraction and scaling are monotone); NaN casts to 0
+        let idx = (((level - self.vmin) * self.scale) as usize).min(self.buckets.len() - 1);
+        if idx <= self.cur {
+            self.heap.push(Reverse((key, seq, v)));
         } else {
-            let b = 64 - (level ^ self.last).leading_zeros() as usize;
-            self.buckets[b].push((level, seq, v));
-            self.nonempty |= 1 << b;
+            self.buckets[idx].push(Reverse((key, seq, v)));
         }
     }
 
-    /// Pops the item with the least `(level, seq)`: returns `(level, value)`.
+    /// Pops the least `(level, seq)`: returns `(level key, value)`.
     #[inline]
     fn pop(&mut self) -> Option<(u64, u32)> {
-        if self.current.is_empty() {
-            if self.nonempty == 0 {
-                return None;
+        loop {
+            if let Some(Reverse((k, _, v))) = self.heap.pop() {
+                return Some((k, v));
             }
-            let b = self.nonempty.trailing_zeros() as usize;
-            let mut items = std::mem::take(&mut self.buckets[b]);
-            self.nonempty &= !(1 << b);
-            self.last = items.iter().map(|e| e.0).min().unwrap_or(self.last);
-            let mut at_level: Vec<(u64, u32)> = Vec::new();
-            for &(level, seq, v) in &items {
-                if level == self.last {
-                    at_level.push((seq, v));
-                } else {
-                    let nb = 64 - (level ^ self.last).leading_zeros() as usize;
-                    self.buckets[nb].push((level, seq, v));
-                    self.nonempty |= 1 << nb;
+            // move on to the next non-empty bucket
+            loop {
+                self.cur += 1;
+                if self.cur >= self.buckets.len() {
+                    return None;
+                }
+                if !self.buckets[self.cur].is_empty() {
+                    break;
                 }
             }
-            at_level.sort_unstable_by_key(|e| e.0);
-            self.current.extend(at_level);
-            items.clear();
-            if self.buckets[b].is_empty() {
-                self.buckets[b] = items;
+            let items = std::mem::take(&mut self.buckets[self.cur]);
+            let old = std::mem::replace(&mut self.heap, BinaryHeap::from(items));
+            // keep the drained heap's allocation for a later bucket
+            let mut spare = old.into_vec();
+            spare.clear();
+            if let Some(next) = self.buckets.get_mut(self.cur + 1)
+                && next.capacity() < spare.capacity()
+            {
+                spare.append(next);
+                *next = spare;
             }
         }
-        let (_, v) = self.current.pop_front()?;
-        Some((self.last, v))
     }
 }
 
@@ -138,19 +162,19 @@ pub fn flood<T: Relief>(
     let (w, h) = (relief.width as usize, relief.height as usize);
     let d = &relief.data;
     let mut labels = seeds.labels.data.clone();
-    // Seeds are pushed in raster order; the minimum seed level goes first so that pushes are
-    // monotone from the start.
-    let mut heap = RadixHeap::new();
-    heap.last = labels
+    // Seeds are pushed in raster order (the FIFO tie rule then serves equal seeds in raster
+    // order).
+    let (vmin, vmax) = d
         .iter()
-        .zip(d)
-        .filter(|(l, _)| **l != 0)
-        .map(|(_, v)| level_key(v.to_f64()))
-        .min()
-        .unwrap_or(0);
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            let v = v.to_f64();
+            (lo.min(v), hi.max(v))
+        });
+    let mut heap = BucketQueue::new(vmin, vmax, d.len());
     for (p, &l) in labels.iter().enumerate() {
         if l != 0 {
-            heap.push(level_key(d[p].to_f64()), p as u32);
+            let v = d[p].to_f64();
+            heap.push(v, level_key(v), p as u32);
         }
     }
     let offs = options.connectivity.offsets();
@@ -167,8 +191,13 @@ pub fn flood<T: Relief>(
             let q = qy as usize * w + qx as usize;
             if labels[q] == 0 {
                 labels[q] = lab;
-                let lq = level_key(d[q].to_f64()).max(level);
-                heap.push(lq, q as u32);
+                let vq = d[q].to_f64();
+                let kq = level_key(vq);
+                if kq > level {
+                    heap.push(vq, kq, q as u32);
+                } else {
+                    heap.push(key_level(level), level, q as u32);
+                }
             }
         }
     }
@@ -208,8 +237,6 @@ pub fn boundary_mask(labels: &Plane<u32>) -> Plane<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::cmp::Reverse;
-    use std::collections::BinaryHeap;
 
     #[test]
     fn level_key_is_monotone() {
@@ -221,37 +248,40 @@ mod tests {
     }
 
     #[test]
-    fn radix_heap_matches_binary_heap() {
+    fn bucket_queue_matches_binary_heap() {
         use quarry_core::rng::RngCore;
         let mut rng = quarry_core::rng::seeded(7);
-        let mut rh = RadixHeap::new();
+        let mut q = BucketQueue::new(0.0, 1000.0, 4000);
         let mut bh = BinaryHeap::new();
-        let mut last = 0u64;
+        let mut last = 0.0f64;
         let mut popped = 0;
         for i in 0..20000u32 {
-            // many equal levels (FIFO must hold) and jumps of all sizes
+            // many equal levels (FIFO must hold), tiny and large steps
             let level = match rng.next_u32() % 4 {
                 0 => last,
-                1 => last + rng.next_u64() % 4,
-                2 => last + (rng.next_u64() % 1000) * (1 << (rng.next_u32() % 40)),
-                _ => last + rng.next_u64() % (1 << 50),
+                1 => last + f64::from(rng.next_u32() % 4) * 1e-9,
+                2 => last + f64::from(rng.next_u32() % 1000) * 1e-3,
+                _ => (last + f64::from(rng.next_u32() % 1000) * 0.01).min(1000.0),
             };
-            rh.push(level, i);
-            bh.push(Reverse((level, u64::from(i), i)));
+            q.push(level, level_key(level), i);
+            bh.push(Reverse((level_key(level), u64::from(i), i)));
             if rng.next_u32().is_multiple_of(2) {
-                let a = rh.pop().unwrap();
+                let a = q.pop().unwrap();
                 let Reverse(b) = bh.pop().unwrap();
                 assert_eq!(a, (b.0, b.2));
-                last = a.0;
+                last = key_level(a.0);
                 popped += 1;
             }
         }
-        while let Some(a) = rh.pop() {
+        while let Some(a) = q.pop() {
             let Reverse(b) = bh.pop().unwrap();
             assert_eq!(a, (b.0, b.2));
         }
         assert!(bh.is_empty());
         assert!(popped > 5000);
+        for v in [-3.5, -0.0, 0.0, 1e-300, 2.0, 253.01] {
+            assert_eq!(key_level(level_key(v)).to_bits(), f64::to_bits(v));
+        }
     }
 
     #[test]
