@@ -555,8 +555,8 @@ fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
     }
     if jipda {
         // explained in the unconditional sense: Σ_l ψ⁺_l β_jl
-        for j in 0..nk {
-            explained[j] = beta.column(j).sum();
+        for (j, e) in explained.iter_mut().enumerate() {
+            *e = beta.column(j).sum();
         }
     }
     p.log_w += log_w + log_wt;
@@ -1046,7 +1046,7 @@ where
                 self.target_est = p
                     .targets
                     .iter()
-                    .map(|s| (s.id, s.est.clone(), s.existence))
+                    .map(|s| (s.id, s.est, s.existence))
                     .collect();
             }
             Readout::WeightedMean => {
@@ -1590,7 +1590,8 @@ pub fn run_mrclam(
     // (epoch, detection source, assigned slot)
     let mut assoc: Vec<(Option<usize>, Option<TrackId>)> = Vec::new();
     // per epoch: reports and truth
-    let mut hist: Vec<(Vec<TrackReport>, Vec<Option<[f64; 2]>>, Pose2)> = Vec::new();
+    type Epoch = (Vec<TrackReport>, Vec<Option<[f64; 2]>>, Pose2);
+    let mut hist: Vec<Epoch> = Vec::new();
     let start = std::time::Instant::now();
     let mut last_slots = 0;
     for f in &run.frames {
