@@ -1,0 +1,798 @@
+//! `quarry slamot`: the RBPF SLAM + multi-target tracker of paper 000 on its simulated scenario
+//! (S0 / S1) or on a UTIAS MRCLAM recording, and `quarry slamot sweep` (error vs particles,
+//! the paper's Figs. 3 and 4).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Subcommand, ValueEnum};
+use plotters::prelude::*;
+use quarry_sim::slamot::SlamotScenarioConfig;
+use quarry_trackers::slamot::{
+    AssociationMode, SimRunResult, SlamotConfig, TargetWeight, filter_seed, mean_var,
+    mrclam_config, run_mrclam, run_simulated,
+};
+use serde::Serialize;
+
+use crate::output::{CmdError, CmdResult, Output, Table};
+use crate::progress;
+
+/// The paper's one-run numbers (N = 50): robot, targets 1..3, (mean, variance).
+pub const PAPER_ROBOT: (f64, f64) = (0.452, 0.117);
+/// The paper's target numbers (mean, variance) for targets 1, 2, 3.
+pub const PAPER_TARGETS: [(f64, f64); 3] = [(0.923, 0.353), (1.544, 1.235), (1.952, 0.5543)];
+
+/// Association mode on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModeArg {
+    /// Exact JPDA (default).
+    Jpda,
+    /// The paper's eqs. (5), (11), (12) literally.
+    Paper,
+    /// JIPDA with existence.
+    Jipda,
+}
+
+/// Built-in scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScenarioArg {
+    /// The paper's scenario (spec §3.2): clean detections.
+    S0,
+    /// Stress: P_D 0.9 and Poisson(2) clutter per scan.
+    S1,
+}
+
+/// Arguments of `quarry slamot`.
+#[derive(Debug, Args)]
+#[command(
+    about = "RBPF SLAM + multi-target tracking (paper 000) on its scenario or on MRCLAM data",
+    long_about = "Run PFJPDA_SLAMOT (spec 000): a Rao-Blackwellized particle filter that localises \
+the robot, maps the landmarks and tracks the moving targets in one filter.
+
+Without --mrclam it runs the simulated scenario (--scenario s0: the paper's 100 m x 100 m world, \
+three constant-velocity targets, 80 s; s1: with missed detections and clutter) --runs times \
+(truth seeds --seed, --seed+1, ...) and reports the robot and per-target position errors \
+(mean over epochs, population variance over epochs, then averaged over runs) beside the paper's \
+numbers, and the number of runs with a swap or loss after the crossing (target error > 3 m \
+after t = 40 s).
+
+With --mrclam DIR --robot K it reads a UTIAS MRCLAM dataset: robot K does SLAM on the 15 \
+landmarks (known barcodes) and tracks the other four robots WITHOUT their barcodes (JIPDA with \
+births and deaths); scored against Vicon.
+
+JSON (--json): {\"robot_err_mean\", \"robot_err_var\", \"target_err_mean\": [..], \
+\"target_err_var\": [..], \"losses\", \"ms_per_step\", \"runs\", \"particles\", \"mode\", \
+\"scenario\", \"paper\"}; with --mrclam also \"map_err\", \"ospa\", \"assoc_accuracy\".
+
+--out DIR writes trajectories_run<r>.csv, map_run<r>.csv and fig1.png (the median run like the \
+paper's Fig. 1: truth dashed, estimates solid, true landmarks as crosses, estimated landmarks as \
+dots; robot black, targets red/green/blue; no text).
+
+EXAMPLES:
+  quarry slamot --runs 20 --particles 50 --json
+  quarry slamot --mode paper --scenario s1 --runs 20
+  quarry slamot --mrclam ../shared/data/mrclam-6 --robot 1 --out out/
+  quarry slamot sweep --particles 20,50,100,200 --runs 20 --out out/"
+)]
+pub struct SlamotArgs {
+    /// Error-vs-particles sweep (Figs. 3 and 4).
+    #[command(subcommand)]
+    pub sub: Option<SlamotSub>,
+    /// Number of particles N.
+    #[arg(long, default_value_t = 50)]
+    pub particles: usize,
+    /// Monte-Carlo runs (truth seeds seed, seed+1, ...).
+    #[arg(long, default_value_t = 1)]
+    pub runs: u64,
+    /// First truth seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Association mode.
+    #[arg(long, value_enum, default_value_t = ModeArg::Jpda)]
+    pub mode: ModeArg,
+    /// Use the paper's eq. (11) target weight (ablation; default: the mode's own).
+    #[arg(long)]
+    pub eq11: bool,
+    /// Built-in scenario.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::S0)]
+    pub scenario: ScenarioArg,
+    /// MRCLAM dataset directory (instead of the simulation).
+    #[arg(long, value_name = "DIR")]
+    pub mrclam: Option<PathBuf>,
+    /// MRCLAM robot that drives (1..=5).
+    #[arg(long, default_value_t = 1)]
+    pub robot: u32,
+    /// Output directory for CSV trajectories and the plot.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+/// Subcommands of `quarry slamot`.
+#[derive(Debug, Subcommand)]
+pub enum SlamotSub {
+    /// Mean errors vs number of particles (the paper's Figs. 3 and 4).
+    Sweep(SweepArgs),
+}
+
+/// Arguments of `quarry slamot sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// Particle counts, comma separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "20,50,100,150,200,250,300,350,400,450,500,550,600"
+    )]
+    pub particles: Vec<usize>,
+    /// Runs per particle count (the same truth seeds for every N).
+    #[arg(long, default_value_t = 20)]
+    pub runs: u64,
+    /// First truth seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Association mode.
+    #[arg(long, value_enum, default_value_t = ModeArg::Jpda)]
+    pub mode: ModeArg,
+    /// Built-in scenario.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::S0)]
+    pub scenario: ScenarioArg,
+    /// Output directory for sweep.csv, fig3.png and fig4.png.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+/// The paper's numbers, echoed in the JSON.
+#[derive(Debug, Serialize)]
+struct Paper {
+    robot_err_mean: f64,
+    robot_err_var: f64,
+    target_err_mean: [f64; 3],
+    target_err_var: [f64; 3],
+}
+
+fn paper() -> Paper {
+    Paper {
+        robot_err_mean: PAPER_ROBOT.0,
+        robot_err_var: PAPER_ROBOT.1,
+        target_err_mean: PAPER_TARGETS.map(|t| t.0),
+        target_err_var: PAPER_TARGETS.map(|t| t.1),
+    }
+}
+
+/// One run's summary.
+#[derive(Debug, Serialize)]
+struct RunSummary {
+    seed: u64,
+    robot_err_mean: f64,
+    robot_err_var: f64,
+    target_err_mean: Vec<f64>,
+    target_err_var: Vec<f64>,
+    swap_or_loss: bool,
+    resample_rate: f64,
+    ms_per_step: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    scenario: String,
+    mode: String,
+    particles: usize,
+    runs: u64,
+    robot_err_mean: f64,
+    robot_err_var: f64,
+    target_err_mean: Vec<f64>,
+    target_err_var: Vec<f64>,
+    losses: usize,
+    ms_per_step: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    map_err: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ospa: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    assoc_accuracy: Option<f64>,
+    paper: Paper,
+    per_run: Vec<RunSummary>,
+}
+
+fn mode_of(m: ModeArg) -> AssociationMode {
+    match m {
+        ModeArg::Jpda => AssociationMode::Jpda,
+        ModeArg::Paper => AssociationMode::Paper,
+        ModeArg::Jipda => AssociationMode::Jipda,
+    }
+}
+
+/// The filter configuration for a built-in scenario (S1: the filter knows P_D 0.9 and the
+/// clutter rate, spec §4.3 E6).
+pub fn sim_config(
+    particles: usize,
+    mode: ModeArg,
+    scenario: ScenarioArg,
+    eq11: bool,
+) -> (SlamotConfig, SlamotScenarioConfig) {
+    let mut cfg = SlamotConfig {
+        particles,
+        association: mode_of(mode),
+        ..SlamotConfig::default()
+    };
+    if eq11 {
+        cfg.target_weight = TargetWeight::PaperEq11;
+    }
+    let scen = match scenario {
+        ScenarioArg::S0 => SlamotScenarioConfig::s0(),
+        ScenarioArg::S1 => {
+            cfg.p_detect = 0.9;
+            cfg.clutter_density = 2.0 / (30.0 * 2.0 * std::f64::consts::PI);
+            SlamotScenarioConfig::s1()
+        }
+    };
+    (cfg, scen)
+}
+
+fn summarise(seed: u64, r: &SimRunResult) -> RunSummary {
+    let (rm, rv) = mean_var(&r.robot_err);
+    let (tm, tv): (Vec<f64>, Vec<f64>) = r.target_err.iter().map(|e| mean_var(e)).unzip();
+    RunSummary {
+        seed,
+        robot_err_mean: rm,
+        robot_err_var: rv,
+        target_err_mean: tm,
+        target_err_var: tv,
+        swap_or_loss: r.swap_or_loss,
+        resample_rate: r.resample_rate,
+        ms_per_step: r.ms_per_step,
+    }
+}
+
+fn avg(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { f64::NAN } else { s / n as f64 }
+}
+
+/// Runs `quarry slamot`.
+pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
+    if let Some(SlamotSub::Sweep(s)) = &args.sub {
+        return sweep(s, out);
+    }
+    if args.particles == 0 || args.runs == 0 {
+        return Err("--particles and --runs must be > 0".into());
+    }
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    if let Some(dir) = &args.mrclam {
+        return run_mrclam_cmd(args, dir, out);
+    }
+    let (cfg, scen) = sim_config(args.particles, args.mode, args.scenario, args.eq11);
+    let pb = progress::bar(out, args.runs, "slamot");
+    let mut results = Vec::new();
+    for i in 0..args.runs {
+        let r = args.seed + i;
+        let res = run_simulated(&cfg, &scen, r, filter_seed(r, args.particles))?;
+        if let Some(dir) = &args.out {
+            write_sim_csv(dir, r, &res)?;
+        }
+        results.push((r, res));
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let per_run: Vec<RunSummary> = results.iter().map(|(r, x)| summarise(*r, x)).collect();
+    if let Some(dir) = &args.out {
+        // the median run by robot error is the figure run (spec §4.3 E1)
+        let mut idx: Vec<usize> = (0..per_run.len()).collect();
+        idx.sort_by(|a, b| {
+            per_run[*a]
+                .robot_err_mean
+                .total_cmp(&per_run[*b].robot_err_mean)
+        });
+        let med = idx[idx.len() / 2];
+        let frames = quarry_sim::slamot::simulate(&scen, results[med].0)?;
+        plot_fig1(&dir.join("fig1.png"), &scen, &results[med].1, &frames)?;
+    }
+    let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
+    let report = Report {
+        scenario: format!("{:?}", args.scenario).to_lowercase(),
+        mode: format!("{:?}", args.mode).to_lowercase(),
+        particles: args.particles,
+        runs: args.runs,
+        robot_err_mean: avg(per_run.iter().map(|r| r.robot_err_mean)),
+        robot_err_var: avg(per_run.iter().map(|r| r.robot_err_var)),
+        target_err_mean: (0..nt)
+            .map(|l| avg(per_run.iter().map(|r| r.target_err_mean[l])))
+            .collect(),
+        target_err_var: (0..nt)
+            .map(|l| avg(per_run.iter().map(|r| r.target_err_var[l])))
+            .collect(),
+        losses: per_run.iter().filter(|r| r.swap_or_loss).count(),
+        ms_per_step: avg(per_run.iter().map(|r| r.ms_per_step)),
+        map_err: None,
+        ospa: None,
+        assoc_accuracy: None,
+        paper: paper(),
+        per_run,
+    };
+    out.emit(&report, || human(&report))
+}
+
+fn human(r: &Report) -> String {
+    let mut t = Table::new([
+        "object",
+        "mean err (m)",
+        "variance",
+        "paper mean",
+        "paper var",
+    ]);
+    t.row([
+        "robot".to_string(),
+        format!("{:.4}", r.robot_err_mean),
+        format!("{:.4}", r.robot_err_var),
+        format!("{}", PAPER_ROBOT.0),
+        format!("{}", PAPER_ROBOT.1),
+    ]);
+    for (l, (m, v)) in r.target_err_mean.iter().zip(&r.target_err_var).enumerate() {
+        let p = PAPER_TARGETS.get(l);
+        t.row([
+            format!("target {}", l + 1),
+            format!("{m:.4}"),
+            format!("{v:.4}"),
+            p.map_or("-".into(), |p| format!("{}", p.0)),
+            p.map_or("-".into(), |p| format!("{}", p.1)),
+        ]);
+    }
+    let mut s = format!(
+        "slamot: scenario {}, mode {}, N = {}, {} run(s)\n",
+        r.scenario, r.mode, r.particles, r.runs
+    );
+    s.push_str(&t.render());
+    let _ = writeln!(
+        s,
+        "swaps/losses after the crossing: {} of {}; {:.4} ms per control step",
+        r.losses, r.runs, r.ms_per_step
+    );
+    if let (Some(m), Some(o), Some(a)) = (r.map_err, r.ospa, r.assoc_accuracy) {
+        let _ = writeln!(
+            s,
+            "map error {m:.3} m, OSPA (p 2, c 1 m) {o:.3} m, association accuracy {a:.3}"
+        );
+    }
+    s
+}
+
+fn write_sim_csv(dir: &Path, r: u64, res: &SimRunResult) -> Result<(), CmdError> {
+    let mut s = String::from("t,robot_x,robot_y,robot_theta,est_x,est_y,est_theta");
+    for l in 0..res.target_true.len() {
+        let _ = write!(s, ",t{l}_x,t{l}_y,t{l}_est_x,t{l}_est_y");
+    }
+    s.push('\n');
+    for k in 0..res.epoch_t.len() {
+        let (a, b) = (res.robot_true[k], res.robot_est[k]);
+        let _ = write!(
+            s,
+            "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5}",
+            res.epoch_t[k], a[0], a[1], a[2], b[0], b[1], b[2]
+        );
+        for l in 0..res.target_true.len() {
+            let (t, e) = (res.target_true[l][k], res.target_est[l][k]);
+            let _ = write!(s, ",{:.4},{:.4},{:.4},{:.4}", t[0], t[1], e[0], e[1]);
+        }
+        s.push('\n');
+    }
+    let p = dir.join(format!("trajectories_run{r}.csv"));
+    std::fs::write(&p, s).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+    let mut m = String::from("landmark,x,y\n");
+    for (id, xy) in &res.map {
+        let _ = writeln!(m, "{},{:.4},{:.4}", id.0, xy[0], xy[1]);
+    }
+    let p = dir.join(format!("map_run{r}.csv"));
+    std::fs::write(&p, m).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+    Ok(())
+}
+
+const COLOURS: [RGBColor; 4] = [BLACK, RED, RGBColor(0, 150, 0), BLUE];
+
+fn save_png(path: &Path, buf: Vec<u8>, w: u32, h: u32) -> Result<(), CmdError> {
+    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer has the wrong size")?;
+    img.save(path)
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// Fig. 1 analogue: truth dashed, estimates solid, true landmarks as crosses, estimated
+/// landmarks as dots, the last epoch's landmark detections as grey segments. No text.
+fn plot_fig1(
+    path: &Path,
+    scen: &SlamotScenarioConfig,
+    res: &SimRunResult,
+    frames: &[quarry_sim::slamot::SlamotFrame],
+) -> Result<(), CmdError> {
+    let (w, h) = (900u32, 900u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(15)
+            .build_cartesian_2d(0f64..100f64, 0f64..100f64)
+            .map_err(|e| e.to_string())?;
+        let e = |x: Result<(), String>| x;
+        // last epoch's detections
+        if let Some(f) = frames.iter().rev().find(|f| f.observe) {
+            let p = f.truth.robot;
+            for (_, z) in &f.landmark_obs {
+                let q = (
+                    p.x + z[0] * (p.theta + z[1]).cos(),
+                    p.y + z[0] * (p.theta + z[1]).sin(),
+                );
+                e(chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        vec![(p.x, p.y), q],
+                        RGBColor(190, 190, 190).stroke_width(1),
+                    )))
+                    .map(|_| ())
+                    .map_err(|x| x.to_string()))?;
+            }
+        }
+        e(chart
+            .draw_series(
+                scen.landmarks
+                    .iter()
+                    .map(|l| Cross::new((l[0], l[1]), 6, BLACK.stroke_width(2))),
+            )
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        e(chart
+            .draw_series(
+                res.map
+                    .iter()
+                    .map(|(_, l)| Circle::new((l[0], l[1]), 3, MAGENTA.filled())),
+            )
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        type Xy = Vec<(f64, f64)>;
+        let mut series: Vec<(Xy, Xy)> = vec![(
+            res.robot_true.iter().map(|p| (p[0], p[1])).collect(),
+            res.robot_est.iter().map(|p| (p[0], p[1])).collect(),
+        )];
+        for l in 0..res.target_true.len() {
+            series.push((
+                res.target_true[l].iter().map(|p| (p[0], p[1])).collect(),
+                res.target_est[l]
+                    .iter()
+                    .filter(|p| p[0].is_finite())
+                    .map(|p| (p[0], p[1]))
+                    .collect(),
+            ));
+        }
+        for (i, (t, est)) in series.into_iter().enumerate() {
+            let c = COLOURS[i % COLOURS.len()];
+            e(chart
+                .draw_series(DashedLineSeries::new(t, 6, 5, c.stroke_width(1)))
+                .map(|_| ())
+                .map_err(|x| x.to_string()))?;
+            e(chart
+                .draw_series(LineSeries::new(est, c.stroke_width(2)))
+                .map(|_| ())
+                .map_err(|x| x.to_string()))?;
+        }
+        root.present().map_err(|x| x.to_string())?;
+    }
+    save_png(path, buf, w, h)
+}
+
+/// One point of the sweep.
+#[derive(Debug, Serialize)]
+struct SweepPoint {
+    particles: usize,
+    robot_err_mean: f64,
+    robot_err_se: f64,
+    target_err_mean: Vec<f64>,
+    target_err_avg: f64,
+    losses: usize,
+    ms_per_step: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct SweepReport {
+    scenario: String,
+    mode: String,
+    runs: u64,
+    points: Vec<SweepPoint>,
+}
+
+fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
+    if args.particles.is_empty() || args.particles.contains(&0) || args.runs == 0 {
+        return Err("--particles must be a list of counts > 0 and --runs > 0".into());
+    }
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    let pb = progress::bar(out, args.particles.len() as u64 * args.runs, "sweep");
+    let mut points = Vec::new();
+    for &n in &args.particles {
+        let (cfg, scen) = sim_config(n, args.mode, args.scenario, false);
+        let mut runs = Vec::new();
+        for i in 0..args.runs {
+            let r = args.seed + i;
+            runs.push(summarise(
+                r,
+                &run_simulated(&cfg, &scen, r, filter_seed(r, n))?,
+            ));
+            pb.inc(1);
+        }
+        let rm: Vec<f64> = runs.iter().map(|r| r.robot_err_mean).collect();
+        let (m, v) = mean_var(&rm);
+        let nt = runs[0].target_err_mean.len();
+        let tm: Vec<f64> = (0..nt)
+            .map(|l| avg(runs.iter().map(|r| r.target_err_mean[l])))
+            .collect();
+        points.push(SweepPoint {
+            particles: n,
+            robot_err_mean: m,
+            robot_err_se: (v * rm.len() as f64 / (rm.len().max(2) - 1) as f64 / rm.len() as f64)
+                .sqrt(),
+            target_err_avg: avg(tm.iter().copied()),
+            target_err_mean: tm,
+            losses: runs.iter().filter(|r| r.swap_or_loss).count(),
+            ms_per_step: avg(runs.iter().map(|r| r.ms_per_step)),
+        });
+    }
+    pb.finish_and_clear();
+    if let Some(dir) = &args.out {
+        let mut s = String::from(
+            "particles,robot_err_mean,robot_err_se,t1,t2,t3,t_avg,losses,ms_per_step\n",
+        );
+        for p in &points {
+            let t = |l: usize| p.target_err_mean.get(l).copied().unwrap_or(f64::NAN);
+            let _ = writeln!(
+                s,
+                "{},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{:.5}",
+                p.particles,
+                p.robot_err_mean,
+                p.robot_err_se,
+                t(0),
+                t(1),
+                t(2),
+                p.target_err_avg,
+                p.losses,
+                p.ms_per_step
+            );
+        }
+        std::fs::write(dir.join("sweep.csv"), s)?;
+        plot_sweep(
+            &dir.join("fig3.png"),
+            &[points
+                .iter()
+                .map(|p| (p.particles as f64, p.robot_err_mean))
+                .collect()],
+        )?;
+        let mut fig4: Vec<Vec<(f64, f64)>> = (0..3)
+            .map(|l| {
+                points
+                    .iter()
+                    .map(|p| {
+                        (
+                            p.particles as f64,
+                            p.target_err_mean.get(l).copied().unwrap_or(f64::NAN),
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        fig4.push(
+            points
+                .iter()
+                .map(|p| (p.particles as f64, p.target_err_avg))
+                .collect(),
+        );
+        plot_sweep(&dir.join("fig4.png"), &fig4)?;
+    }
+    let report = SweepReport {
+        scenario: format!("{:?}", args.scenario).to_lowercase(),
+        mode: format!("{:?}", args.mode).to_lowercase(),
+        runs: args.runs,
+        points,
+    };
+    out.emit(&report, || {
+        let mut t = Table::new([
+            "N",
+            "robot err",
+            "s.e.",
+            "target 1",
+            "target 2",
+            "target 3",
+            "avg",
+            "losses",
+            "ms/step",
+        ]);
+        for p in &report.points {
+            let tt = |l: usize| {
+                format!(
+                    "{:.4}",
+                    p.target_err_mean.get(l).copied().unwrap_or(f64::NAN)
+                )
+            };
+            t.row([
+                p.particles.to_string(),
+                format!("{:.4}", p.robot_err_mean),
+                format!("{:.4}", p.robot_err_se),
+                tt(0),
+                tt(1),
+                tt(2),
+                format!("{:.4}", p.target_err_avg),
+                p.losses.to_string(),
+                format!("{:.3}", p.ms_per_step),
+            ]);
+        }
+        format!(
+            "slamot sweep: scenario {}, mode {}, {} runs per N\n{}",
+            report.scenario,
+            report.mode,
+            report.runs,
+            t.render()
+        )
+    })
+}
+
+/// Error-vs-particles curves (one panel per series, 1 or 2x2), y from 0; no text (the
+/// numbers are in sweep.csv).
+fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), CmdError> {
+    let (w, h) = (900u32, 700u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let panels = if series.len() == 1 {
+            vec![root.clone()]
+        } else {
+            root.split_evenly((2, 2))
+        };
+        for (i, (s, area)) in series.iter().zip(panels.iter()).enumerate() {
+            let xmax = s.iter().map(|p| p.0).fold(1.0, f64::max) * 1.05;
+            let ymax = s
+                .iter()
+                .map(|p| p.1)
+                .filter(|v| v.is_finite())
+                .fold(0.01, f64::max)
+                * 1.3;
+            let mut chart = ChartBuilder::on(area)
+                .margin(20)
+                .build_cartesian_2d(0f64..xmax, 0f64..ymax)
+                .map_err(|e| e.to_string())?;
+            // axes
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(0.0, ymax), (0.0, 0.0), (xmax, 0.0)],
+                    BLACK.stroke_width(1),
+                )))
+                .map_err(|e| e.to_string())?;
+            let c = COLOURS[(i + usize::from(series.len() > 1)) % COLOURS.len()];
+            chart
+                .draw_series(LineSeries::new(s.iter().copied(), c.stroke_width(2)))
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(s.iter().map(|p| Circle::new(*p, 4, c.filled())))
+                .map_err(|e| e.to_string())?;
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    save_png(path, buf, w, h)
+}
+
+fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
+    let run = quarry_sim::mrclam::load(dir, args.robot)?;
+    let mut cfg = mrclam_config(args.particles);
+    if args.mode != ModeArg::Jipda {
+        eprintln!(
+            "note: MRCLAM uses JIPDA with births and deaths (the number of robots in view varies)"
+        );
+    }
+    cfg.association = AssociationMode::Jipda;
+    let pb = progress::bar(out, args.runs, "mrclam");
+    let mut per_run = Vec::new();
+    let mut extras = Vec::new();
+    let mut last = None;
+    for i in 0..args.runs {
+        let r = args.seed + i;
+        let res = run_mrclam(&cfg, &run, filter_seed(r, args.particles))?;
+        let (rm, rv) = mean_var(&res.robot_err);
+        let (tm, tv): (Vec<f64>, Vec<f64>) = res.target_err.iter().map(|e| mean_var(e)).unzip();
+        per_run.push(RunSummary {
+            seed: r,
+            robot_err_mean: rm,
+            robot_err_var: rv,
+            target_err_mean: tm,
+            target_err_var: tv,
+            swap_or_loss: res.target_slot.iter().any(Option::is_none),
+            resample_rate: f64::NAN,
+            ms_per_step: res.ms_per_step,
+        });
+        extras.push((res.map_err, res.ospa, res.assoc_accuracy));
+        last = Some(res);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    if let (Some(d), Some(res)) = (&args.out, &last) {
+        let mut s = String::from("t,robot_x,robot_y,robot_theta,est_x,est_y,est_theta\n");
+        for k in 0..res.epoch_t.len() {
+            let (a, b) = (res.robot_true[k], res.robot_est[k]);
+            let _ = writeln!(
+                s,
+                "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5}",
+                res.epoch_t[k], a[0], a[1], a[2], b[0], b[1], b[2]
+            );
+        }
+        std::fs::write(
+            d.join(format!("mrclam_robot{}_trajectory.csv", args.robot)),
+            s,
+        )?;
+        let mut m = String::from("landmark_subject,x,y\n");
+        for (id, xy) in &res.map {
+            let _ = writeln!(m, "{},{:.4},{:.4}", id.0 + 6, xy[0], xy[1]);
+        }
+        std::fs::write(d.join(format!("mrclam_robot{}_map.csv", args.robot)), m)?;
+    }
+    let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
+    let report = Report {
+        scenario: format!(
+            "mrclam robot {} (targets: robots {:?})",
+            args.robot, run.target_robots
+        ),
+        mode: "jipda".into(),
+        particles: args.particles,
+        runs: args.runs,
+        robot_err_mean: avg(per_run.iter().map(|r| r.robot_err_mean)),
+        robot_err_var: avg(per_run.iter().map(|r| r.robot_err_var)),
+        target_err_mean: (0..nt)
+            .map(|l| avg(per_run.iter().map(|r| r.target_err_mean[l])))
+            .collect(),
+        target_err_var: (0..nt)
+            .map(|l| avg(per_run.iter().map(|r| r.target_err_var[l])))
+            .collect(),
+        losses: per_run.iter().filter(|r| r.swap_or_loss).count(),
+        ms_per_step: avg(per_run.iter().map(|r| r.ms_per_step)),
+        map_err: Some(avg(extras.iter().map(|e| e.0))),
+        ospa: Some(avg(extras.iter().map(|e| e.1))),
+        assoc_accuracy: Some(avg(extras.iter().map(|e| e.2))),
+        paper: paper(),
+        per_run,
+    };
+    let skips = run.skips;
+    out.emit(&report, || {
+        let mut s = human(&report);
+        let _ = writeln!(
+            s,
+            "(target k = robot {:?}[k]; paper columns are the paper's simulation, for reference)\nskipped records: {skips:?}",
+            run.target_robots
+        );
+        s
+    })
+}
+
+/// The `quarry demo` row: S0, one run, N = 50, robot and target errors next to the paper's.
+pub fn demo_rows(seed: u64) -> Result<Vec<super::demo::Row>, CmdError> {
+    let (cfg, scen) = sim_config(50, ModeArg::Jpda, ScenarioArg::S0, false);
+    let res = run_simulated(&cfg, &scen, seed, filter_seed(seed, 50))?;
+    let s = summarise(seed, &res);
+    let scenario = "S0 (spec 000), N 50, 1 run".to_string();
+    let mut rows = vec![super::demo::Row {
+        tracker: "slamot".into(),
+        scenario: scenario.clone(),
+        metric: "robot mean error (m)".into(),
+        value: s.robot_err_mean,
+        paper: Some(PAPER_ROBOT.0),
+        ms_per_frame: Some(s.ms_per_step),
+    }];
+    for (l, m) in s.target_err_mean.iter().enumerate() {
+        rows.push(super::demo::Row {
+            tracker: "slamot".into(),
+            scenario: scenario.clone(),
+            metric: format!("target {} mean error (m)", l + 1),
+            value: *m,
+            paper: PAPER_TARGETS.get(l).map(|p| p.0),
+            ms_per_frame: Some(s.ms_per_step),
+        });
+    }
+    Ok(rows)
+}
