@@ -40,8 +40,8 @@ use quarry_assoc::{Jipda, Jpda, PaperLikelihood, weights_eq11};
 use quarry_core::rng::stream;
 use quarry_core::{
     Associator, CoreError, Gaussian, InverseMeasurement, LandmarkId, LandmarkStore,
-    LikelihoodMatrix, MultiTargetTracker, Pose2, SampledMotion, Stamp, StateEstimate, StateLayout,
-    TrackFlags, TrackId, TrackPrior, TrackReport, TrackStatus, wrap_angle,
+    LikelihoodMatrix, MultiTargetTracker, Pose2, Resampler, SampledMotion, Stamp, StateEstimate,
+    StateLayout, TrackFlags, TrackId, TrackPrior, TrackReport, TrackStatus, wrap_angle,
 };
 use quarry_filter::ekf::{self, MeasurementPrediction};
 use quarry_filter::{
@@ -393,30 +393,6 @@ struct EpochOut {
     beta: DMatrix<f64>,
 }
 
-/// PDA combined-innovation update (spec §2.9): all components share one linearisation, so the
-/// moment-matched mixture is `ŝ = ŝ⁻ + K ν̄`,
-/// `P = β₀ P⁻ + (1 − β₀) P^c + K (Σ β_j ν_j ν_jᵀ − ν̄ ν̄ᵀ) Kᵀ`.
-fn pda_collapse(
-    prior: &Gaussian<4>,
-    pred: &MeasurementPrediction<4, 2>,
-    nus: &[Vector2<f64>],
-    beta: &[f64],
-) -> Gaussian<4> {
-    let b0 = beta[0];
-    let mut nubar = Vector2::zeros();
-    let mut spread = Matrix2::zeros();
-    for (nu, b) in nus.iter().zip(&beta[1..]) {
-        nubar += nu * *b;
-        spread += nu * nu.transpose() * *b;
-    }
-    spread -= nubar * nubar.transpose();
-    let k = &pred.gain;
-    let mean = prior.mean + k * nubar;
-    let pc = pred.posterior_cov(&prior.cov, UpdateForm::Joseph);
-    let p: SMatrix<f64, 4, 4> = prior.cov * b0 + pc * (1.0 - b0) + k * spread * k.transpose();
-    Gaussian::new_unchecked(mean, (p + p.transpose()) * 0.5)
-}
-
 fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
     p: &mut SlamotParticle<S>,
     ctx: &EpochCtx<'_>,
@@ -538,7 +514,7 @@ fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
     // 5.7 PDA update
     for (l, s) in p.targets.iter_mut().enumerate() {
         let beta: Vec<f64> = a.beta.row(l).iter().copied().collect();
-        s.est = pda_collapse(&s.est, &preds[l], &nus[l], &beta);
+        s.est = quarry_filter::pda::update(&s.est, &preds[l], &nus[l], &beta)?;
         for j in 0..nk {
             explained[j] += beta[j + 1] * if jipda { s.existence } else { 1.0 };
         }
@@ -561,40 +537,6 @@ fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
     }
     p.log_w += log_w + log_wt;
     Ok(EpochOut { explained, beta })
-}
-
-fn stratified(weights: &[f64], u: &mut impl Rng) -> Vec<usize> {
-    let n = weights.len();
-    let mut out = Vec::with_capacity(n);
-    let mut cum = 0.0;
-    let mut i = 0;
-    for k in 0..n {
-        let target = (k as f64 + u.random::<f64>()) / n as f64;
-        while i + 1 < n && cum + weights[i] < target {
-            cum += weights[i];
-            i += 1;
-        }
-        out.push(i);
-    }
-    out
-}
-
-/// Normalised weights from log weights (LSE); `None` when all are −∞ or NaN.
-pub fn normalise_log_weights(log_w: &[f64]) -> Option<Vec<f64>> {
-    let mx = log_w
-        .iter()
-        .copied()
-        .filter(|v| !v.is_nan())
-        .fold(f64::NEG_INFINITY, f64::max);
-    if !mx.is_finite() {
-        return None;
-    }
-    let e: Vec<f64> = log_w
-        .iter()
-        .map(|v| if v.is_nan() { 0.0 } else { (v - mx).exp() })
-        .collect();
-    let s: f64 = e.iter().sum();
-    Some(e.into_iter().map(|v| v / s).collect())
 }
 
 /// The SLAMOT tracker over landmark store `S`.
@@ -622,34 +564,11 @@ pub struct SlamotTracker<S> {
     last_beta_ids: Vec<TrackId>,
 }
 
-/// A flat landmark store (one `Vec` per particle, O(M) copy on resampling). Stand-in until
-/// quarry-filter's `store` module lands.
-#[derive(Debug, Clone, Default)]
-pub struct FlatStore(Vec<Gaussian<2>>);
-
-impl LandmarkStore<Gaussian<2>> for FlatStore {
-    fn get(&self, id: LandmarkId) -> Option<&Gaussian<2>> {
-        self.0.get(id.0 as usize)
-    }
-    fn set(&mut self, id: LandmarkId, value: Gaussian<2>) -> Result<(), CoreError> {
-        let n = self.0.len();
-        let slot = self.0.get_mut(id.0 as usize).ok_or_else(|| {
-            CoreError::invalid("landmark id", format!("{} (store holds {n})", id.0))
-        })?;
-        *slot = value;
-        Ok(())
-    }
-    fn push(&mut self, value: Gaussian<2>) -> LandmarkId {
-        self.0.push(value);
-        LandmarkId(self.0.len() as u32 - 1)
-    }
-    fn len(&self) -> usize {
-        self.0.len()
-    }
-}
-
-/// The default landmark store.
-pub type DefaultStore = FlatStore;
+/// The default landmark store: quarry-filter's persistent Arc tree (O(1) particle copy,
+/// O(log M) landmark update).
+pub type DefaultStore = quarry_filter::store::PersistentStore<Gaussian<2>>;
+/// The flat alternative (O(M) particle copy; faster for small maps).
+pub type FlatStore = quarry_filter::store::VecStore<Gaussian<2>>;
 
 impl SlamotTracker<DefaultStore> {
     /// A tracker with the persistent store; `initial` = the known initial pose (map frame),
@@ -661,7 +580,7 @@ impl SlamotTracker<DefaultStore> {
 
 impl<S> SlamotTracker<S>
 where
-    S: LandmarkStore<Gaussian<2>> + Default + Send + Sync,
+    S: LandmarkStore<Gaussian<2>> + FromIterator<Gaussian<2>> + Send + Sync,
 {
     /// A tracker over any landmark store.
     pub fn with_store(cfg: SlamotConfig, initial: Pose2, seed: u64) -> Result<Self, SlamotError> {
@@ -676,7 +595,7 @@ where
         let particles = (0..n)
             .map(|_| SlamotParticle {
                 pose: initial,
-                map: S::default(),
+                map: std::iter::empty().collect(),
                 targets: Vec::new(),
                 log_w: -(n as f64).ln(),
             })
@@ -906,9 +825,9 @@ where
         }
         // 6. normalise
         let lw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
-        let w = normalise_log_weights(&lw)
-            .ok_or(SlamotError::WeightsDegenerate { step: self.step_k })?;
-        let neff = 1.0 / w.iter().map(|v| v * v).sum::<f64>();
+        let (w, _) = quarry_filter::particles::normalise_log(&lw)
+            .map_err(|_| SlamotError::WeightsDegenerate { step: self.step_k })?;
+        let neff = quarry_filter::particles::effective_sample_size(&w);
         // keep log weights bounded
         for (p, wi) in self.particles.iter_mut().zip(&w) {
             p.log_w = wi.ln();
@@ -946,7 +865,7 @@ where
         // 9. resample
         let resampled = neff < cfg.neff_threshold * cfg.particles as f64;
         if resampled {
-            self.resample();
+            self.resample()?;
         }
         self.stats = EpochStats {
             neff,
@@ -957,11 +876,11 @@ where
         Ok(())
     }
 
-    fn resample(&mut self) {
+    fn resample(&mut self) -> Result<(), SlamotError> {
         self.resamples += 1;
         let n = self.particles.len();
         let mut rng = stream(self.seed, &[self.step_k, u64::MAX]);
-        let anc = stratified(&self.weights, &mut rng);
+        let anc = quarry_filter::particles::Stratified.ancestors(&self.weights, &mut rng)?;
         let new: Vec<SlamotParticle<S>> = anc
             .iter()
             .map(|&a| {
@@ -972,6 +891,7 @@ where
             .collect();
         self.particles = new;
         self.weights = vec![1.0 / n as f64; n];
+        Ok(())
     }
 
     fn manage_tracks(&mut self, targets: &[Vector2<f64>]) -> Result<(usize, usize), SlamotError> {
@@ -1134,7 +1054,7 @@ where
 
 impl<S> MultiTargetTracker for SlamotTracker<S>
 where
-    S: LandmarkStore<Gaussian<2>> + Default + Send + Sync,
+    S: LandmarkStore<Gaussian<2>> + FromIterator<Gaussian<2>> + Send + Sync,
 {
     type Input = SlamotObservation;
     type Error = SlamotError;
@@ -1253,7 +1173,7 @@ pub fn run_frames<S>(
     filter_seed: u64,
 ) -> Result<SimRunResult, SlamotError>
 where
-    S: LandmarkStore<Gaussian<2>> + Default + Send + Sync,
+    S: LandmarkStore<Gaussian<2>> + FromIterator<Gaussian<2>> + Send + Sync,
 {
     let mut tr = SlamotTracker::<S>::with_store(cfg.clone(), initial, filter_seed)?;
     let n_true = frames.first().map_or(0, |f| f.truth.targets.len());
@@ -1350,7 +1270,14 @@ pub fn run_simulated(
         .map_err(|e| SlamotError::Config(format!("scenario: {e}")))?;
     let [x, y, th] = scen.robot_init;
     match cfg.map_store {
-        MapStoreKind::Persistent | MapStoreKind::Vec => run_frames::<DefaultStore>(
+        MapStoreKind::Persistent => run_frames::<DefaultStore>(
+            cfg,
+            &frames,
+            Pose2::new(x, y, th),
+            scen.dt_control,
+            filter_seed,
+        ),
+        MapStoreKind::Vec => run_frames::<FlatStore>(
             cfg,
             &frames,
             Pose2::new(x, y, th),
@@ -1432,7 +1359,18 @@ mod tests {
             target_obs: vec![[f64::NAN, 0.0]],
         };
         assert!(t.step(Stamp::from_frame(2, 0.025), &bad_z).is_err());
-        assert!(normalise_log_weights(&[f64::NEG_INFINITY, f64::NAN]).is_none());
+        // the Vec store gives bit-identical results to the persistent tree
+        let mut scen = SlamotScenarioConfig::s0();
+        scen.duration = 8.0;
+        let mut cfg = SlamotConfig {
+            particles: 10,
+            ..SlamotConfig::default()
+        };
+        let a = run_simulated(&cfg, &scen, 4, 5).unwrap();
+        cfg.map_store = MapStoreKind::Vec;
+        let b = run_simulated(&cfg, &scen, 4, 5).unwrap();
+        assert_eq!(a.robot_est, b.robot_est);
+        assert_eq!(a.map, b.map);
     }
 
     #[test]
