@@ -1,0 +1,7 @@
+//! One module per subcommand. To add one: write `src/cmd/<name>.rs` with an `Args` struct
+//! (clap `Args` derive, long help with an example) and `pub fn run(args: &Args, out: &Output)
+//! -> CmdResult`, add `pub mod <name>;` here, and one variant plus one dispatch line in
+//! `src/main.rs`.
+
+pub mod demo;
+pub mod eval;
