@@ -54,6 +54,8 @@ enum Command {
     // the `about` / `long_about` written on each Args struct in cmd/<name>.rs.
     Demo(cmd::demo::DemoArgs),
     Eval(cmd::eval::EvalArgs),
+    /// RBPF SLAM + multi-target tracking (paper 000) on its scenario or on MRCLAM data.
+    Slamot(cmd::slamot::SlamotArgs),
 }
 
 fn main() -> ExitCode {
@@ -64,6 +66,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Demo(a) => cmd::demo::run(a, &out),
         Command::Eval(a) => cmd::eval::run(a, &out),
+        Command::Slamot(a) => cmd::slamot::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

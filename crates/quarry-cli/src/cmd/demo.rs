@@ -69,7 +69,12 @@ pub struct Row {
 pub type RowFn = fn(&DemoArgs) -> Result<Vec<Row>, CmdError>;
 
 /// Every demo, in table order: `(name, function)`.
-pub const DEMOS: &[(&str, RowFn)] = &[("kf-cv", kf_cv)];
+pub const DEMOS: &[(&str, RowFn)] = &[("kf-cv", kf_cv), ("slamot", slamot)];
+
+/// PFJPDA_SLAMOT (paper 000) on S0: one run, N = 50, robot and target errors beside the paper's.
+fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
+    super::slamot::demo_rows(args.seed)
+}
 
 #[derive(Serialize)]
 struct DemoReport<'a> {
