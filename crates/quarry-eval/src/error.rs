@@ -23,7 +23,8 @@ pub enum EvalError {
     DuplicateId {
         /// `"ground truth"` or `"hypothesis"`.
         which: &'static str,
-        /// The frame (as given in the input).
+        /// The frame: its number in a MOTChallenge file (from [`crate::motchallenge`]), or its
+        /// 0-based position in the sequence (from [`crate::MotEvaluation::new`]).
         frame: u64,
         /// The repeated id.
         id: i64,

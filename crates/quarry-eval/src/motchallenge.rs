@@ -374,7 +374,27 @@ fn select<'a>(
         by_frame.entry(r.frame).or_default().1.push(r);
     }
     let mut frames = Vec::with_capacity(by_frame.len());
-    for (gts, rs) in by_frame.into_values() {
+    for (frame, (gts, rs)) in by_frame {
+        let mut seen = std::collections::HashSet::new();
+        for g in &gts {
+            if !seen.insert(g.id) {
+                return Err(EvalError::DuplicateId {
+                    which: "ground truth",
+                    frame,
+                    id: g.id,
+                });
+            }
+        }
+        seen.clear();
+        for r in &rs {
+            if !seen.insert(r.id) {
+                return Err(EvalError::DuplicateId {
+                    which: "hypothesis",
+                    frame,
+                    id: r.id,
+                });
+            }
+        }
         let ignored: Vec<bool> = gts
             .iter()
             .map(|g| !g.consider || g.class.is_some_and(|c| DISTRACTOR_CLASSES.contains(&c)))
@@ -485,6 +505,9 @@ mod tests {
         let gt16 = read_gt("1,1,0,0,10,10,1,1,1\n", GtStyle::Auto).unwrap();
         assert!(to_point_frames(&gt16, &res, 0.5).is_err());
         assert!(to_frames(&gt, &res, 0.0).is_err());
+        let dup = read_results("7,4,0,0,10,10\n7,4,5,5,10,10\n").unwrap();
+        let e = to_frames(&gt, &dup, 0.5).unwrap_err();
+        assert_eq!(e.to_string(), "duplicate id 4 in frame 7 of the hypothesis");
     }
 
     #[test]
