@@ -70,22 +70,28 @@ pub fn region_constraint(
     let beams: Vec<usize> = (0..points.len()).filter(|&n| points[n].is_some()).collect();
     let pts: Vec<Point2> = beams.iter().filter_map(|&n| points[n]).collect();
     let index = KdIndex::new(&pts)?;
+    // candidate / non-candidate counts per distinct point (identical points share an id)
+    let mut cand_u = vec![0usize; index.n_unique()];
+    let mut non_u = vec![0usize; index.n_unique()];
+    for (k, &n) in beams.iter().enumerate() {
+        let u = index.unique_index(k).unwrap_or(0);
+        if candidate[n] {
+            cand_u[u] += 1;
+        } else {
+            non_u[u] += 1;
+        }
+    }
     let mut out = vec![false; points.len()];
     for (k, &n) in beams.iter().enumerate() {
         if !candidate[n] {
             continue;
         }
         let (mut ns, mut nd) = (0usize, 0usize);
-        for j in index.within(&pts[k], delta) {
-            if j == k {
-                continue;
-            }
-            if candidate[beams[j]] {
-                ns += 1;
-            } else {
-                nd += 1;
-            }
-        }
+        index.for_each_unique_id_within(&pts[k], delta, |u, _, _| {
+            ns += cand_u[u];
+            nd += non_u[u];
+        });
+        ns = ns.saturating_sub(1); // the candidate itself
         out[n] = (ns + nd == 0) || ns > nd;
     }
     Ok(out)

@@ -167,6 +167,37 @@ impl KdIndex {
         }
     }
 
+    /// The distinct-point id of original point `i` (ids index [`Self::unique_points`]).
+    pub fn unique_index(&self, i: usize) -> Option<usize> {
+        self.unique_of.get(i).map(|&u| u as usize)
+    }
+
+    /// Calls `f(unique_id, remaining_multiplicity, squared_distance)` for every distinct point
+    /// within `radius` (inclusive) of `q` that still has unremoved members (allocation-free).
+    pub fn for_each_unique_id_within(
+        &self,
+        q: &Point2,
+        radius: f64,
+        mut f: impl FnMut(usize, usize, f64),
+    ) {
+        let Some(tree) = &self.tree else { return };
+        if !(radius >= 0.0 && q.x.is_finite() && q.y.is_finite()) {
+            return;
+        }
+        let hits = tree
+            .query(&[q.x, q.y])
+            .within::<SquaredEuclidean<f64>>(radius * radius)
+            .unsorted()
+            .execute();
+        for h in hits {
+            let u = h.item as usize;
+            let m = self.remaining[u];
+            if m > 0 {
+                f(u, m as usize, h.distance);
+            }
+        }
+    }
+
     /// Original indices of the unremoved points within `radius` (inclusive) of `q`, ascending.
     pub fn within(&self, q: &Point2, radius: f64) -> Vec<usize> {
         let mut out = Vec::new();

@@ -4,6 +4,21 @@
 //! the chi-square background model, MeanShift, ICP, scanner calibration and the
 //! time-synchronised fusion of scans into frames.
 //!
+//! | module | contents |
+//! |---|---|
+//! | [`scan`] | beam geometry helpers, [`scan::BeamTable`] (polar → Cartesian), range validity |
+//! | [`kd`] | [`kd::KdIndex`]: kiddo `ImmutableKdTree` with de-duplication and a removal mask |
+//! | [`background`] | [`background::ChiSquareBackground`] (eqs. 3–6, region constraint, long-term background) |
+//! | [`cluster`] | [`cluster::MeanShift`] (flat / Gaussian, bin or all-point seeds, deterministic) |
+//! | [`icp`] | [`icp::rigid_2d`] (closed form) and [`icp::Icp2d`] (trimmed point-to-point ICP) |
+//! | [`contour`] | [`contour::EllipseModel`], the human contour model of §2.6 |
+//! | [`calib`] | scanner extrinsics from static backgrounds, or from configured poses |
+//! | [`net`] | sans-IO [`net::wire`] format, [`net::ClockSync`], [`net::FrameAssembler`] |
+//! | [`csv_scans`] | the recorded-scan CSV reader (`stamp_s,r0..r{N-1}`) |
+//!
+//! Every public function that takes data returns `Result<_, CloudError>` (the quarry-core trait
+//! implementations return `CoreError`); nothing panics on bad input.
+//!
 //! ```
 //! use quarry_cloud::{cluster::MeanShift, icp::Icp2d};
 //! use quarry_core::{Clusterer, Point2, Pose2, Registration2};

@@ -166,7 +166,7 @@ impl ClockSync {
         let Some(a) = self.applied else {
             return (local, false);
         };
-        let mut t = local.0 + a.round() as i64;
+        let mut t = local.0.saturating_add(a.round() as i64);
         // slewing never goes backwards; after a step the flag tells the server
         let synced = !std::mem::take(&mut self.step_pending);
         if synced && let Some(last) = self.last_stamp {

@@ -63,6 +63,9 @@ pub struct FrameConfig {
     pub scans_per_frame: ScansPerFrame,
     /// Accept messages without `CLOCK_SYNCED` (only with `sync = none`).
     pub accept_unsynced: bool,
+    /// At most this many frames are closed by one `poll` (the rest on the next call), so a
+    /// poll far in the future cannot emit an unbounded number of empty frames at once.
+    pub max_frames_per_poll: usize,
 }
 
 impl Default for FrameConfig {
@@ -75,6 +78,7 @@ impl Default for FrameConfig {
             liveness_us: 1_000_000,
             scans_per_frame: ScansPerFrame::Nearest,
             accept_unsynced: false,
+            max_frames_per_poll: 100_000,
         }
     }
 }
@@ -216,7 +220,8 @@ impl FrameAssembler {
         if !(cfg.period_us > 0
             && cfg.tau_sync_us >= 0
             && cfg.max_latency_us >= 0
-            && cfg.liveness_us > 0)
+            && cfg.liveness_us > 0
+            && cfg.max_frames_per_poll > 0)
         {
             return Err(CoreError::invalid(
                 "frame config",
@@ -257,7 +262,11 @@ impl FrameAssembler {
             });
         }
         let t0 = start.0.div_euclid(cfg.period_us) * cfg.period_us;
-        let t0 = if t0 < start.0 { t0 + cfg.period_us } else { t0 };
+        let t0 = if t0 < start.0 {
+            t0.saturating_add(cfg.period_us)
+        } else {
+            t0
+        };
         Ok(Self {
             cfg,
             sensors: states,
@@ -275,7 +284,10 @@ impl FrameAssembler {
 
     /// The time of the next frame to close.
     pub fn next_frame_time(&self) -> TimeUs {
-        TimeUs(self.t0 + self.next_frame as i64 * self.cfg.period_us)
+        TimeUs(
+            self.t0
+                .saturating_add((self.next_frame as i64).saturating_mul(self.cfg.period_us)),
+        )
     }
 
     /// Per-sensor minimum of `arrival − t_capture` seen so far, µs (the skew monitor's ε_s: a
@@ -401,7 +413,7 @@ impl FrameAssembler {
         if now.0 < first.0.saturating_add(self.cfg.max_latency_us) {
             return false;
         }
-        let edge = t_f + self.half_window();
+        let edge = t_f.saturating_add(self.half_window());
         // lowest expected seq: above base, or the lowest seen
         let mut expect = match s.base {
             Some(b) => b.wrapping_add(1),
@@ -426,9 +438,14 @@ impl FrameAssembler {
     pub fn poll(&mut self, now: TimeUs) -> Vec<Frame> {
         let mut out = Vec::new();
         let w = self.half_window();
-        loop {
-            let t_f = self.t0 + self.next_frame as i64 * self.cfg.period_us;
-            let deadline = now.0 >= t_f + w + self.cfg.max_latency_us;
+        while out.len() < self.cfg.max_frames_per_poll {
+            let t_f = self
+                .t0
+                .saturating_add((self.next_frame as i64).saturating_mul(self.cfg.period_us));
+            let deadline = now.0
+                >= t_f
+                    .saturating_add(w)
+                    .saturating_add(self.cfg.max_latency_us);
             let live: Vec<usize> = (0..self.sensors.len())
                 .filter(|&k| self.live(&self.sensors[k], now))
                 .collect();
@@ -446,7 +463,7 @@ impl FrameAssembler {
 
     fn close(&mut self, t_f: i64, now: TimeUs) -> Frame {
         let w = self.half_window();
-        let edge = t_f + w;
+        let edge = t_f.saturating_add(w);
         let mut frame = Frame {
             index: self.next_frame,
             t: TimeUs(t_f),
@@ -461,8 +478,8 @@ impl FrameAssembler {
             let live = self.live(&self.sensors[k], now);
             let s = &mut self.sensors[k];
             let in_window = |e: &ScanEntry| match self.cfg.scans_per_frame {
-                ScansPerFrame::Nearest => (e.t.0 - t_f).abs() <= w,
-                ScansPerFrame::All => e.t.0 > t_f - w && e.t.0 <= t_f + w,
+                ScansPerFrame::Nearest => e.t.0.abs_diff(t_f) <= w.unsigned_abs(),
+                ScansPerFrame::All => e.t.0 > t_f.saturating_sub(w) && e.t.0 <= edge,
             };
             let mut chosen: Vec<u32> = s
                 .scans
@@ -476,7 +493,7 @@ impl FrameAssembler {
                     .copied()
                     .min_by_key(|q| {
                         let t = s.scans[q].t.0;
-                        ((t - t_f).abs(), t, *q)
+                        (t.abs_diff(t_f), t, *q)
                     })
                     .into_iter()
                     .collect();
