@@ -56,6 +56,8 @@ enum Command {
     Eval(cmd::eval::EvalArgs),
     /// RBPF SLAM + multi-target tracking (paper 000) on its scenario or on MRCLAM data.
     Slamot(cmd::slamot::SlamotArgs),
+    /// SIFT keypoints of an image, or keypoints and matches of two images.
+    Sift(cmd::sift::SiftArgs),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +69,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => cmd::demo::run(a, &out),
         Command::Eval(a) => cmd::eval::run(a, &out),
         Command::Slamot(a) => cmd::slamot::run(a, &out),
+        Command::Sift(a) => cmd::sift::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

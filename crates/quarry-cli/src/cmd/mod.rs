@@ -5,4 +5,5 @@
 
 pub mod demo;
 pub mod eval;
+pub mod sift;
 pub mod slamot;
