@@ -439,6 +439,32 @@ fn select<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// Arbitrary bytes, and valid lines with random bytes spliced in, never panic anywhere
+        /// from parsing to scoring (the same path as the `motchallenge_reader` fuzz target).
+        #[test]
+        fn never_panics(noise in proptest::collection::vec(any::<u8>(), 0..64), at in 0usize..200) {
+            let mut data = b"1,1,10,20,30,60,1,1,0.5\n1,2,15,20,30,60,0,7,1\n2,1,11,20,30,60,1,-1,-1,-1\n".to_vec();
+            let at = at.min(data.len());
+            data.splice(at..at, noise.iter().copied());
+            for bytes in [&noise[..], &data[..]] {
+                if let (Ok(rows), Ok(text)) = (parse_bytes(bytes), std::str::from_utf8(bytes)) {
+                    for style in [GtStyle::Auto, GtStyle::Mot15, GtStyle::Mot16] {
+                        if let Ok(gt) = read_gt(text, style)
+                            && let Ok(frames) = to_frames(&gt, &rows, 0.5)
+                            && let Ok(ev) = crate::MotEvaluation::new(&frames, &crate::Iou::default())
+                        {
+                            let s = ev.summary().unwrap();
+                            prop_assert!(s.clear.num_objects <= gt.len());
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn errors_name_the_line() {
