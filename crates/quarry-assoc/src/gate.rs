@@ -331,5 +331,27 @@ mod tests {
                 prop_assert!(rect.accepts(&pred, &zv, 0.0));
             }
         }
+
+        #[test]
+        fn pv_gate_symmetric_and_scaling(ax in -5.0f64..5.0, ay in -5.0f64..5.0, bx in -5.0f64..5.0,
+                                         by in -5.0f64..5.0, va in -3.0f64..3.0, vb in -3.0f64..3.0,
+                                         k in 1.0f64..5.0, dt in 0.01f64..0.2) {
+            // Spec 003 §8 test 9: G(a, b) = G(b, a), G ≥ 0, G(a, a) = 0, G ∝ 1/k², and G equals
+            // the Mahalanobis distance under diag(σ²) divided by k².
+            let g = PositionVelocityGate { k, ..PositionVelocityGate::spec003() };
+            let a = PvState { pos: Vector2::new(ax, ay), vel: Some(Vector2::new(va, vb)) };
+            let b = PvState { pos: Vector2::new(bx, by), vel: Some(Vector2::new(vb, va)) };
+            let gab = g.eq8(&a, &b, dt);
+            prop_assert!(gab >= 0.0);
+            prop_assert!((gab - g.eq8(&b, &a, dt)).abs() <= 1e-12 * gab.max(1.0));
+            prop_assert_eq!(g.eq8(&a, &a, dt), 0.0);
+            let g2 = PositionVelocityGate { k: 2.0 * k, ..g };
+            prop_assert!((g2.eq8(&a, &b, dt) - gab / 4.0).abs() <= 1e-12 * gab.max(1.0));
+            let scale = if dt > g.frame_period { dt / g.frame_period } else { 1.0 };
+            let sp = g.sigma_pos[0] * scale;
+            let maha = ((bx - ax) / sp).powi(2) + ((by - ay) / sp).powi(2)
+                + ((va - vb) / 1.5).powi(2) + ((vb - va) / 1.5).powi(2);
+            prop_assert!((gab - maha / (k * k)).abs() <= 1e-9 * gab.max(1.0));
+        }
     }
 }
