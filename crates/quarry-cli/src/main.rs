@@ -54,6 +54,7 @@ enum Command {
     // the `about` / `long_about` written on each Args struct in cmd/<name>.rs.
     Demo(cmd::demo::DemoArgs),
     Eval(cmd::eval::EvalArgs),
+    Lidar(cmd::lidar::LidarArgs),
     /// RBPF SLAM + multi-target tracking (paper 000) on its scenario or on MRCLAM data.
     Slamot(cmd::slamot::SlamotArgs),
     /// SIFT keypoints of an image, or keypoints and matches of two images.
@@ -68,6 +69,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Demo(a) => cmd::demo::run(a, &out),
         Command::Eval(a) => cmd::eval::run(a, &out),
+        Command::Lidar(a) => cmd::lidar::run(a, &out),
         Command::Slamot(a) => cmd::slamot::run(a, &out),
         Command::Sift(a) => cmd::sift::run(a, &out),
     };

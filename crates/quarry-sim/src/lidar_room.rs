@@ -361,7 +361,8 @@ pub enum Motion {
     Waypoint,
     /// Heading random walk (0.8 rad/√s), speed redrawn every 5 s.
     RandomWalk,
-    /// A fixed closed route of waypoints at a fixed speed (scripted scenarios).
+    /// A fixed closed route of waypoints at a fixed speed (scripted scenarios); the walker turns
+    /// on the spot at each waypoint.
     Route(Vec<[f64; 2]>),
 }
 
@@ -555,6 +556,9 @@ impl Walker {
                             self.route_idx = (self.route_idx + 1) % r.len();
                             let q = r[self.route_idx];
                             self.target = Point2::new(q[0], q[1]);
+                            // a scripted walker turns on the spot at the end of a leg
+                            let d = self.target - self.state.pos;
+                            self.state.heading = d.y.atan2(d.x);
                         }
                         _ => self.pick_waypoint(room),
                     }

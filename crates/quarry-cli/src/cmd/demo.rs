@@ -69,7 +69,7 @@ pub struct Row {
 pub type RowFn = fn(&DemoArgs) -> Result<Vec<Row>, CmdError>;
 
 /// Every demo, in table order: `(name, function)`.
-pub const DEMOS: &[(&str, RowFn)] = &[("kf-cv", kf_cv), ("slamot", slamot)];
+pub const DEMOS: &[(&str, RowFn)] = &[("kf-cv", kf_cv), ("slamot", slamot), ("lidar-people", lidar_people)];
 
 /// PFJPDA_SLAMOT (paper 000) on S0: one run, N = 50, robot and target errors beside the paper's.
 fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
@@ -80,6 +80,11 @@ fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
 struct DemoReport<'a> {
     seed: u64,
     rows: &'a [Row],
+}
+
+/// The lidar people tracker (paper 003), `faithful` preset on band_mid.
+fn lidar_people(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
+    super::lidar::demo_rows(args.seed)
 }
 
 /// Runs `quarry demo`.

@@ -5,5 +5,6 @@
 
 pub mod demo;
 pub mod eval;
+pub mod lidar;
 pub mod sift;
 pub mod slamot;

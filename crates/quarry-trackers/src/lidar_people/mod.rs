@@ -19,15 +19,22 @@ pub use metrics::{
     EvalFrame, LocStats, Paper003Metrics, evaluate_paper003, loc_stats, match_within, paper_success,
 };
 pub use pipeline::{
-    ClientPipeline, DynamicScan, Fusion, RoomRun, RowSource, ServerPipeline, run_room,
+    AssemblerFusion, ClientPipeline, DynamicScan, Fusion, RoomRun, RowSource, ServerPipeline,
+    encode_dynamic, run_room, run_room_default,
 };
 pub use tracker::{
-    ContourDetector, ContourFit, FusedPoints, KfGnnTracker, LidarTrack, Table1Tracker, pca_angle,
+    ContourDetector, ContourFit, FusedPoints, KfGnnTracker, LidarTrack, Table1Tracker,
 };
 
 use crate::TrackerError;
 use quarry_assoc::PositionVelocityGate;
-use quarry_core::{Clusterer, MultiTargetTracker, Point2, Registration2, Stamp, TrackReport};
+use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermConfig, SigmaMode};
+use quarry_cloud::cluster::MeanShift;
+use quarry_cloud::contour::EllipseModel;
+use quarry_cloud::icp::{Correspondence, Icp2d, Trim};
+use quarry_core::{
+    Clusterer, CoreError, MultiTargetTracker, Registration2, ScanGeometry, Stamp, TrackReport,
+};
 
 /// The gate (8) with the σ and k of a configuration.
 pub fn gate_of(cfg: &LidarPeopleConfig) -> PositionVelocityGate {
@@ -50,25 +57,25 @@ pub enum LidarPeopleTracker<C, R> {
 }
 
 impl<C: Clusterer, R: Registration2> LidarPeopleTracker<C, R> {
-    /// Assembles the tracker of `cfg.preset` from a clusterer, a registration and the contour
-    /// model points (model frame).
+    /// Assembles the tracker of `cfg.preset` from a clusterer and a registration; the contour
+    /// model is the ellipse of `cfg` (a_m, b_m, K_m).
     pub fn from_parts(
         cfg: &LidarPeopleConfig,
         clusterer: C,
         registration: R,
-        model: Vec<Point2>,
     ) -> Result<Self, TrackerError> {
         cfg.validate()?;
-        if model.len() < 3 {
-            return Err(TrackerError::Config(
-                "the contour model needs >= 3 points".into(),
-            ));
-        }
+        let ellipse = EllipseModel {
+            a: cfg.a_m,
+            b: cfg.b_m,
+            k: cfg.k_m,
+        };
+        let model = ellipse.points().map_err(CoreError::from)?;
         let det = ContourDetector {
             clusterer,
             registration,
             model,
-            axes: (cfg.a_m, cfg.b_m),
+            ellipse,
             r_m: cfg.r_m,
             min_num_point: cfg.min_num_point,
             d_m_matching: cfg.d_m_matching,
@@ -103,5 +110,63 @@ impl<C: Clusterer, R: Registration2> MultiTargetTracker for LidarPeopleTracker<C
             Self::Table1(t) => t.process(stamp, input),
             Self::KfGnn(t) => t.process(stamp, input),
         }
+    }
+}
+
+/// The tracker with quarry-cloud's MeanShift and contour ICP.
+pub type DefaultLidarTracker = LidarPeopleTracker<MeanShift, Icp2d>;
+
+/// MeanShift with the §2.5 parameters of `cfg`.
+pub fn meanshift_of(cfg: &LidarPeopleConfig) -> MeanShift {
+    MeanShift {
+        min_cluster_size: cfg.n_min_cluster,
+        ..MeanShift::with_bandwidth(cfg.bandwidth)
+    }
+}
+
+/// The contour ICP with the §2.6 switches of `cfg`.
+pub fn icp_of(cfg: &LidarPeopleConfig) -> Icp2d {
+    Icp2d {
+        direction: if cfg.icp_data_to_model {
+            Correspondence::DataToModel
+        } else {
+            Correspondence::ModelToData
+        },
+        trim: cfg.icp_trim.then(Trim::default),
+        rms_stop: cfg.icp_e,
+        delta_stop: cfg.icp_eps_delta,
+        max_iter: cfg.icp_it_max,
+        require_full_model: !cfg.icp_data_to_model,
+        ..Icp2d::default()
+    }
+}
+
+/// The chi-square background of §2.2 for a scanner of `geometry`, with the switches of `cfg`.
+pub fn background_of(
+    cfg: &LidarPeopleConfig,
+    geometry: &ScanGeometry,
+) -> Result<ChiSquareBackground, TrackerError> {
+    let per_scan = |s: f64| (s / geometry.scan_period.max(1e-6)).round().max(1.0);
+    let bc = ChiSquareConfig {
+        window: cfg.window_m,
+        p_threshold: cfg.p_th,
+        kappa: cfg.kappa,
+        sigma: SigmaMode::Datasheet,
+        region_constraint: true,
+        region_radius: cfg.delta_region,
+        long_term: cfg.revealed_background.then(|| LongTermConfig {
+            warm_scans: per_scan(cfg.t_warm_s) as usize,
+            min_valid_fraction: 0.5,
+            alpha: cfg.alpha_b,
+            relearn_scans: per_scan(cfg.t_relearn_s) as u32,
+        }),
+    };
+    Ok(ChiSquareBackground::new(geometry, bc).map_err(CoreError::from)?)
+}
+
+impl DefaultLidarTracker {
+    /// The tracker of `cfg` with quarry-cloud's MeanShift and ICP.
+    pub fn from_config(cfg: &LidarPeopleConfig) -> Result<Self, TrackerError> {
+        Self::from_parts(cfg, meanshift_of(cfg), icp_of(cfg))
     }
 }

@@ -5,6 +5,8 @@ use super::config::LidarPeopleConfig;
 use super::metrics::EvalFrame;
 use super::tracker::{FusedPoints, LidarTrack};
 use crate::TrackerError;
+use quarry_cloud::net::wire::{FLAG_CLOCK_SYNCED, Header, Kind, encode_scan};
+use quarry_cloud::net::{FrameAssembler, FrameConfig, SensorConfig};
 use quarry_core::{
     BackgroundModel, BeamLabel, Clusterer, FrameIndex, MultiTargetTracker, Point2, PolarScan,
     Pose2, Registration2, ScanGeometry, SensorId, Stamp, TimeUs,
@@ -299,4 +301,102 @@ impl<C: Clusterer, R: Registration2> RowSource for super::LidarPeopleTracker<C, 
     fn rows(&self) -> &[LidarTrack] {
         self.last_rows()
     }
+}
+
+/// Encodes a client's dynamic scan as wire datagrams (spec §7.1; several parts when it has more
+/// than 350 points).
+pub fn encode_dynamic(scan: &DynamicScan, t_send: TimeUs) -> Result<Vec<Vec<u8>>, TrackerError> {
+    let header = Header {
+        kind: Kind::DynamicScan,
+        sensor: scan.sensor,
+        seq: scan.seq,
+        part: 0,
+        parts: 1,
+        flags: if scan.synced { FLAG_CLOCK_SYNCED } else { 0 },
+        t_capture: scan.t,
+        t_send,
+    };
+    encode_scan(header, &scan.beams)
+        .map_err(|e| quarry_core::CoreError::numerical("wire encode", e.to_string()).into())
+}
+
+/// The fusion stage over quarry-cloud's sans-IO [`FrameAssembler`]: every message goes through
+/// the wire codec, so the in-process run exercises the same bytes as the networked one.
+#[derive(Debug)]
+pub struct AssemblerFusion {
+    /// The assembler.
+    pub assembler: FrameAssembler,
+}
+
+impl AssemblerFusion {
+    /// An assembler for sensors `(id, world pose, geometry)` with the §2.4 times of `cfg`, the
+    /// server starting at time 0.
+    pub fn new(
+        sensors: &[(SensorId, Pose2, ScanGeometry)],
+        cfg: &LidarPeopleConfig,
+    ) -> Result<Self, TrackerError> {
+        let sc: Vec<SensorConfig> = sensors
+            .iter()
+            .map(|(id, pose, g)| SensorConfig {
+                id: *id,
+                pose: *pose,
+                geometry: *g,
+            })
+            .collect();
+        let fc = FrameConfig {
+            period_us: (cfg.frame_period_s * 1e6).round() as i64,
+            tau_sync_us: (cfg.tau_sync_s * 1e6).round() as i64,
+            max_latency_us: (cfg.l_max_s * 1e6).round() as i64,
+            ..FrameConfig::default()
+        };
+        let assembler =
+            FrameAssembler::new(fc, &sc, TimeUs(0)).map_err(quarry_core::CoreError::from)?;
+        Ok(Self { assembler })
+    }
+}
+
+impl Fusion for AssemblerFusion {
+    fn push(&mut self, scan: DynamicScan, arrival: TimeUs) -> Result<(), TrackerError> {
+        for d in encode_dynamic(&scan, scan.t)? {
+            self.assembler.on_datagram(&d, arrival);
+        }
+        Ok(())
+    }
+
+    fn poll(&mut self, now: TimeUs) -> Result<Vec<FusedPoints>, TrackerError> {
+        Ok(self
+            .assembler
+            .poll(now)
+            .into_iter()
+            .map(|f| FusedPoints {
+                t: f.t,
+                points: f.points.iter().map(|p| p.p).collect(),
+                no_data: f.no_data,
+            })
+            .collect())
+    }
+}
+
+/// [`run_room`] with the default parts: quarry-cloud's chi-square background per scanner, the
+/// fusion over quarry-cloud's `FrameAssembler`, and the tracker of `cfg.preset`.
+pub fn run_room_default(
+    sc: Scenario,
+    cfg: &LidarPeopleConfig,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RoomRun, TrackerError> {
+    let sensors: Vec<(SensorId, Pose2, ScanGeometry)> = sc
+        .scanners
+        .iter()
+        .map(|s| (s.id, s.pose, s.geometry))
+        .collect();
+    let fusion = AssemblerFusion::new(&sensors, cfg)?;
+    let tracker = super::DefaultLidarTracker::from_config(cfg)?;
+    run_room(
+        sc,
+        cfg,
+        |g| super::background_of(cfg, g),
+        fusion,
+        tracker,
+        progress,
+    )
 }

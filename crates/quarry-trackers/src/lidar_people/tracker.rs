@@ -6,6 +6,7 @@ use crate::TrackerError;
 use nalgebra::{DMatrix, Matrix4, Vector2, Vector4};
 use quarry_assoc::PvState;
 use quarry_assoc::lifecycle::{MOfN, MOfNRecord, ScanObservation, TrackLifecycle, TrackState};
+use quarry_cloud::contour::EllipseModel;
 use quarry_core::{
     Clusterer, Clustering, CoreError, Gate, Gaussian, MultiTargetTracker, Point2, Pose2,
     Registration2, Stamp, StateEstimate, StateLayout, TimeUs, TrackFlags, TrackId, TrackReport,
@@ -72,8 +73,8 @@ pub struct ContourDetector<C, R> {
     pub registration: R,
     /// The contour model points (model frame, x along the shoulders).
     pub model: Vec<Point2>,
-    /// Semi-axes `(a_m, b_m)`.
-    pub axes: (f64, f64),
+    /// The ellipse (semi-axes a_m, b_m; K_m) whose points are `model`.
+    pub ellipse: EllipseModel,
     /// Removal margin r_m.
     pub r_m: f64,
     /// min_num_point.
@@ -82,21 +83,6 @@ pub struct ContourDetector<C, R> {
     pub d_m_matching: f64,
     /// Two orientation starts for new clusters (`faithful`), else one start at α = 0.
     pub two_starts: bool,
-}
-
-/// `φ_pca = ½·atan2(2C_xy, C_xx − C_yy)` of a point set.
-pub fn pca_angle(pts: &[Point2]) -> f64 {
-    let n = pts.len().max(1) as f64;
-    let mx = pts.iter().map(|p| p.x).sum::<f64>() / n;
-    let my = pts.iter().map(|p| p.y).sum::<f64>() / n;
-    let (mut cxx, mut cyy, mut cxy) = (0.0, 0.0, 0.0);
-    for p in pts {
-        let (dx, dy) = (p.x - mx, p.y - my);
-        cxx += dx * dx;
-        cyy += dy * dy;
-        cxy += dx * dy;
-    }
-    0.5 * (2.0 * cxy).atan2(cxx - cyy)
 }
 
 impl<C: Clusterer, R: Registration2> ContourDetector<C, R> {
@@ -115,7 +101,7 @@ impl<C: Clusterer, R: Registration2> ContourDetector<C, R> {
         if !self.two_starts {
             return self.fit(data, Pose2::new(c.x, c.y, 0.0));
         }
-        let phi = pca_angle(data);
+        let phi = quarry_cloud::contour::pca_angle(data).unwrap_or(0.0);
         let a = self.fit(data, Pose2::new(c.x, c.y, phi));
         let b = self.fit(data, Pose2::new(c.x, c.y, phi + FRAC_PI_2));
         if b.1 < a.1 { b } else { a }
@@ -124,15 +110,12 @@ impl<C: Clusterer, R: Registration2> ContourDetector<C, R> {
     /// Removes (clears in `remaining`) every point inside the removal ellipse of `pose`; returns
     /// how many were removed.
     pub fn remove_inside(&self, pose: &Pose2, pts: &[Point2], remaining: &mut [bool]) -> usize {
-        let ea = self.axes.0 + self.r_m;
-        let eb = self.axes.1 + self.r_m;
         let mut n = 0;
         for (q, r) in pts.iter().zip(remaining.iter_mut()) {
             if !*r {
                 continue;
             }
-            let l = pose.apply_inverse(q);
-            if (l.x / ea).powi(2) + (l.y / eb).powi(2) <= 1.0 {
+            if self.ellipse.removal_contains(pose, q, self.r_m) {
                 *r = false;
                 n += 1;
             }
