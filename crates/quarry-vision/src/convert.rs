@@ -94,6 +94,25 @@ mod image_interop {
         super::u8_to_f32(&Plane::from(img.to_luma8()))
     }
 
+    /// RGB → grey with spec 004's rule `Y = round(0.299 R + 0.587 G + 0.114 B)` (BT.601,
+    /// OpenCV's `cvtColor` weights; the `image` crate's own luma uses BT.709).
+    pub fn rgb_to_gray_bt601(img: &image::RgbImage) -> Plane<u8> {
+        let (w, h) = img.dimensions();
+        Plane {
+            width: w,
+            height: h,
+            data: img
+                .pixels()
+                .map(|p| {
+                    let [r, g, b] = p.0;
+                    (0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(b))
+                        .round()
+                        .clamp(0.0, 255.0) as u8
+                })
+                .collect(),
+        }
+    }
+
     /// A float plane → 8-bit grey image (rounded, saturated).
     pub fn float_to_gray_image<T: Copy + Into<f64>>(
         p: &Plane<T>,
@@ -105,6 +124,7 @@ mod image_interop {
 #[cfg(feature = "io")]
 pub use image_interop::{
     GrayImageF32, dynamic_to_f32, f64_to_image, float_to_gray_image, image_to_f64,
+    rgb_to_gray_bt601,
 };
 
 #[cfg(test)]
@@ -134,5 +154,7 @@ mod tests {
         assert_eq!(g.get_pixel(3, 2).0[0], 4);
         let d = image::DynamicImage::ImageLuma8(g);
         assert_eq!(dynamic_to_f32(&d).get(3, 2), Some(&4.0));
+        let rgb = image::RgbImage::from_pixel(2, 1, image::Rgb([255, 0, 0]));
+        assert_eq!(rgb_to_gray_bt601(&rgb).data, vec![76, 76]);
     }
 }

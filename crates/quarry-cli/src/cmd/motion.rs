@@ -1,0 +1,267 @@
+//! `quarry motion`: moving-point detection over an image sequence (spec 004 §2.7–2.8).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::Args;
+use image::Rgb;
+use quarry_vision::convert::rgb_to_gray_bt601;
+use quarry_vision::io::load_rgb;
+use quarry_vision::render::{draw_cross, draw_polyline, grey_to_rgb};
+use quarry_vision::{MinimumTrajectories, MotionTest, RampBlurWatershed, RegionMapping};
+use serde::Serialize;
+
+use crate::output::{CmdResult, Output, Table};
+use crate::progress;
+
+/// Arguments of `quarry motion`.
+#[derive(Debug, Args)]
+#[command(
+    about = "Moving points (watershed minima with a regular trajectory) over an image sequence",
+    long_about = "Moving-point detection of spec 004 (Hu et al. 2012) over an image sequence from a \
+static camera: each frame is segmented (ramp, f64 Gaussian blur, regional minima, watershed); \
+the regions of consecutive frames are mapped through their minima (bidirectional match, merge, \
+split); chains of bidirectional matches give trajectories of the last N minima positions; a \
+trajectory is a moving point when its L1 displacement exceeds --m-thred (eq. 6) and the \
+variance of its normalised displacement steps is below --v-thred (eqs. 3-5, 7).
+
+DIR holds the frames as image files (PNG or JPEG, e.g. MOTChallenge's img1/000001.jpg), taken \
+in file-name order; colour is converted to grey with Y = round(0.299 R + 0.587 G + 0.114 B). \
+--frames A..B selects frames A to B inclusive, 1-based in that order (MOTChallenge frame \
+numbers).
+
+OUTPUT: one line per frame (regions, bidirectional links, merges, splits, moving points) and \
+annotated frames written to --out DIR as <frame>.png: the grey frame, every full-length \
+trajectory in yellow, moving points in red with a cross at their current position.
+
+JSON (--json) prints one object with: frames (number processed), ms (mean segmentation + \
+mapping time per frame in milliseconds, excluding image I/O and drawing), per_frame (list of \
+{frame, regions, bidirectional, merges, splits, moving: [{x, y, displacement, variance}]}).
+
+EXAMPLE:
+  quarry motion ../shared/data/pets09-s2l1/img1 --frames 1..40 --sigma 8 --out motion/"
+)]
+pub struct MotionArgs {
+    /// Directory of frames.
+    #[arg(value_name = "DIR")]
+    pub dir: PathBuf,
+    /// Frames A..B (1-based, inclusive) in file-name order; default all.
+    #[arg(long, value_name = "A..B")]
+    pub frames: Option<String>,
+    /// Gaussian blur sigma in pixels (> 0).
+    #[arg(long, default_value_t = 8.0)]
+    pub sigma: f64,
+    /// Trajectory length N.
+    #[arg(long, default_value_t = 10)]
+    pub n: usize,
+    /// Minimal L1 displacement over the trajectory (eq. 6), pixels.
+    #[arg(long, default_value_t = 0.0)]
+    pub m_thred: f64,
+    /// Maximal variance of the normalised displacement steps (eq. 7).
+    #[arg(long, default_value_t = 0.01)]
+    pub v_thred: f64,
+    /// Directory for the annotated frames (created if needed).
+    #[arg(long, value_name = "DIR", default_value = "quarry-motion")]
+    pub out: PathBuf,
+    /// Do not write annotated frames.
+    #[arg(long)]
+    pub no_images: bool,
+}
+
+#[derive(Debug, Serialize)]
+struct MovingJson {
+    x: u32,
+    y: u32,
+    displacement: f64,
+    variance: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct FrameJson {
+    frame: usize,
+    regions: usize,
+    bidirectional: usize,
+    merges: usize,
+    splits: usize,
+    moving: Vec<MovingJson>,
+}
+
+#[derive(Debug, Serialize)]
+struct MotionJson {
+    frames: usize,
+    ms: f64,
+    per_frame: Vec<FrameJson>,
+}
+
+fn parse_range(s: &str, n: usize) -> Result<(usize, usize), String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("--frames {s}: expected A..B"))?;
+    let a: usize = a
+        .trim()
+        .parse()
+        .map_err(|_| format!("--frames {s}: bad start"))?;
+    let b: usize = if b.trim().is_empty() {
+        n
+    } else {
+        b.trim()
+            .parse()
+            .map_err(|_| format!("--frames {s}: bad end"))?
+    };
+    if a == 0 || b < a {
+        return Err(format!("--frames {s}: need 1 <= A <= B"));
+    }
+    if b > n {
+        return Err(format!("--frames {s}: the directory has only {n} frames"));
+    }
+    Ok((a, b))
+}
+
+fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let rd = std::fs::read_dir(dir).map_err(|e| format!("cannot read {}: {e}", dir.display()))?;
+    let mut files: Vec<PathBuf> = rd
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(format!("no PNG or JPEG frames in {}", dir.display()));
+    }
+    Ok(files)
+}
+
+/// Runs `quarry motion`.
+pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
+    let files = list_frames(&args.dir)?;
+    let (a, b) = match &args.frames {
+        Some(s) => parse_range(s, files.len())?,
+        None => (1, files.len()),
+    };
+    let test = MotionTest {
+        n: args.n,
+        m_thred: args.m_thred,
+        v_thred: args.v_thred,
+    };
+    test.validate()?;
+    if !args.no_images {
+        std::fs::create_dir_all(&args.out)
+            .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    }
+    let segmenter = RampBlurWatershed::new(args.sigma);
+    let pb = progress::bar(out, (b - a + 1) as u64, "motion");
+    let mut prev: Option<quarry_core::Segmentation> = None;
+    let mut traj: Option<MinimumTrajectories> = None;
+    let mut per_frame = Vec::new();
+    let mut total_ms = 0.0;
+    for (k, path) in files[a - 1..b].iter().enumerate() {
+        let frame_no = a + k;
+        let grey = rgb_to_gray_bt601(&load_rgb(path)?);
+        let t = Instant::now();
+        let seg = segmenter.run(&grey)?.segmentation;
+        let (bidir, merges, splits) = if let (Some(p), Some(tr)) = (&prev, &mut traj) {
+            let map = RegionMapping::new(p, &seg)?;
+            tr.advance(&map, &seg)?;
+            (map.bidirectional.len(), map.merges.len(), map.splits.len())
+        } else {
+            traj = Some(MinimumTrajectories::new(args.n, &seg)?);
+            (0, 0, 0)
+        };
+        let tr = traj.as_ref().ok_or("internal: no trajectories")?;
+        let moving = tr.moving_points(&test)?;
+        total_ms += t.elapsed().as_secs_f64() * 1e3;
+
+        if !args.no_images {
+            let mut img = grey_to_rgb(&grey);
+            for t in &tr.trajectories {
+                if t.len() == args.n {
+                    let pts: Vec<(u32, u32)> = t.iter().copied().collect();
+                    draw_polyline(&mut img, &pts, Rgb([255, 220, 0]));
+                }
+            }
+            for (label, _) in &moving {
+                if let Some(t) = tr.get(*label) {
+                    let pts: Vec<(u32, u32)> = t.iter().copied().collect();
+                    draw_polyline(&mut img, &pts, Rgb([255, 0, 0]));
+                    if let Some(&last) = t.back() {
+                        draw_cross(&mut img, last, 5, Rgb([255, 0, 0]));
+                    }
+                }
+            }
+            let p = args.out.join(format!("{frame_no:06}.png"));
+            img.save(&p)
+                .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+        }
+        per_frame.push(FrameJson {
+            frame: frame_no,
+            regions: seg.n_regions(),
+            bidirectional: bidir,
+            merges,
+            splits,
+            moving: moving
+                .iter()
+                .map(|(label, s)| {
+                    let (x, y) = seg.minima[*label as usize - 1].representative;
+                    MovingJson {
+                        x,
+                        y,
+                        displacement: s.displacement,
+                        variance: s.variance,
+                    }
+                })
+                .collect(),
+        });
+        prev = Some(seg);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let n = per_frame.len();
+    let json = MotionJson {
+        frames: n,
+        ms: total_ms / n as f64,
+        per_frame,
+    };
+    out.emit(&json, || {
+        let mut t = Table::new(["frame", "regions", "bidir", "merges", "splits", "moving"]);
+        for f in &json.per_frame {
+            t.row([
+                f.frame.to_string(),
+                f.regions.to_string(),
+                f.bidirectional.to_string(),
+                f.merges.to_string(),
+                f.splits.to_string(),
+                f.moving.len().to_string(),
+            ]);
+        }
+        let mut s = t.render();
+        let _ = writeln!(
+            s,
+            "{n} frames, {:.1} ms per frame (segmentation + mapping)",
+            json.ms
+        );
+        if !args.no_images {
+            let _ = writeln!(s, "annotated frames in {}", args.out.display());
+        }
+        s
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_range;
+
+    #[test]
+    fn ranges() {
+        assert_eq!(parse_range("1..5", 10), Ok((1, 5)));
+        assert_eq!(parse_range("3..", 10), Ok((3, 10)));
+        assert!(parse_range("0..5", 10).is_err());
+        assert!(parse_range("5..3", 10).is_err());
+        assert!(parse_range("1..11", 10).is_err());
+        assert!(parse_range("x", 10).is_err());
+    }
+}
