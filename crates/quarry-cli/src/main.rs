@@ -59,6 +59,8 @@ enum Command {
     Slamot(cmd::slamot::SlamotArgs),
     /// SIFT keypoints of an image, or keypoints and matches of two images.
     Sift(cmd::sift::SiftArgs),
+    Segment(cmd::segment::SegmentArgs),
+    Motion(cmd::motion::MotionArgs),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +74,8 @@ fn main() -> ExitCode {
         Command::Lidar(a) => cmd::lidar::run(a, &out),
         Command::Slamot(a) => cmd::slamot::run(a, &out),
         Command::Sift(a) => cmd::sift::run(a, &out),
+        Command::Segment(a) => cmd::segment::run(a, &out),
+        Command::Motion(a) => cmd::motion::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

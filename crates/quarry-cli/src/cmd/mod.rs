@@ -6,5 +6,7 @@
 pub mod demo;
 pub mod eval;
 pub mod lidar;
+pub mod motion;
+pub mod segment;
 pub mod sift;
 pub mod slamot;
