@@ -368,27 +368,27 @@ impl Associator for PaperLikelihood {
     }
 }
 
-fn log_sum_exp(it: impl Iterator<Item = f64> + Clone) -> f64 {
-    let mx = it.clone().fold(f64::NEG_INFINITY, f64::max);
-    if mx == f64::NEG_INFINITY {
-        return mx;
-    }
-    mx + it.map(|x| (x - mx).exp()).sum::<f64>().ln()
-}
-
 /// ln of the paper's eq. (11) target weight: `Σ_j [LSE_i(2 ln g_ij) − LSE_i(ln g_ij)]` over the
 /// detections with at least one finite entry (pass an ungated matrix for the literal form).
-/// Finite even when every `g` underflows in linear space.
+/// Finite even when every `g` underflows (or overflows) in linear space: each column is
+/// evaluated as `M + ln Σ e^{2(x−M)} − ln Σ e^{x−M}` with `M` its largest entry.
 pub fn weights_eq11(lik: &LikelihoodMatrix) -> f64 {
     let (n, m) = (lik.n_tracks(), lik.n_meas());
     let mut total = 0.0;
     for j in 0..m {
-        let col = (0..n).map(move |i| lik.get(i, j));
-        let l1 = log_sum_exp(col.clone());
-        if l1 == f64::NEG_INFINITY {
+        let mx = (0..n)
+            .map(|i| lik.get(i, j))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if mx == f64::NEG_INFINITY {
             continue;
         }
-        total += log_sum_exp(col.map(|x| 2.0 * x)) - l1;
+        let (mut s1, mut s2) = (0.0, 0.0);
+        for i in 0..n {
+            let d = lik.get(i, j) - mx;
+            s1 += d.exp();
+            s2 += (2.0 * d).exp();
+        }
+        total += mx + s2.ln() - s1.ln();
     }
     total
 }

@@ -42,7 +42,7 @@
 //!   per cluster by a memoised enumeration that never builds the product of hypotheses;
 //!   k-best (Murty) and loopy belief propagation. **Automatic choice** ([`Method::Auto`], the
 //!   default): a cluster is solved exactly while its DAG of distinct sub-problems has at most
-//!   [`Solver::max_states`] nodes (2¹⁸ by default; in practice up to ~14 mutually gated
+//!   [`Solver::max_states`] nodes (2¹⁸ by default; in practice up to ~12–13 mutually gated
 //!   targets with as many detections); larger clusters (or more than 128 tracks) use LBP.
 //!   **LBP tolerance**: on random dense clusters (every pair gated) max |β_LBP − β_exact|
 //!   ≤ 0.35 and mean error ≤ 0.2 (BP is over-confident there); exact on acyclic gating

@@ -461,3 +461,62 @@ fn twelve_mutually_gated_targets_are_exact() {
         }
     }
 }
+
+fn well_formed(a: &quarry_core::Association, n: usize, m: usize) -> bool {
+    a.beta.shape() == (n, m + 1)
+        && !a.log_normaliser.is_nan()
+        && (0..n).all(|i| {
+            (a.beta.row(i).sum() - 1.0).abs() < 1e-6
+                && a.beta
+                    .row(i)
+                    .iter()
+                    .all(|b| b.is_finite() && *b >= -1e-12 && *b <= 1.0 + 1e-9)
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+    /// The fuzz target's contract on stable: arbitrary values and parameters never panic, and
+    /// every successful result is well-formed.
+    #[test]
+    fn arbitrary_inputs_never_panic(n in 0usize..6, m in 0usize..7,
+                                    vals in proptest::collection::vec(prop_oneof![
+                                        2 => any::<f64>(), 2 => Just(NI), 3 => -50.0f64..5.0,
+                                        1 => Just(-1e308), 1 => Just(f64::MIN_POSITIVE)], 42),
+                                    ps in proptest::collection::vec(prop_oneof![
+                                        Just(f64::NAN), Just(0.0), Just(1.0), Just(1.5), 0.0f64..1.0], 16),
+                                    kappa in prop_oneof![Just(0.0), Just(f64::INFINITY), 1e-300f64..1e3],
+                                    method in 0u8..4, k in 0usize..5, budget in 1usize..500) {
+        let lik = DMatrix::from_row_slice(n, m, &vals[..n * m]);
+        let Ok(lm) = LikelihoodMatrix::new(lik) else { return Ok(()) };
+        let pri: Vec<TrackPrior> = (0..n)
+            .map(|i| TrackPrior {
+                existence: (i % 2 == 0).then_some(ps[i]),
+                detection: (i % 3 == 0).then_some(ps[i + 6]),
+            })
+            .collect();
+        let method = match method { 0 => Method::Auto, 1 => Method::Exact, 2 => Method::KBest { k }, _ => Method::Lbp };
+        let solver = Solver { method, max_states: budget, ..Solver::default() };
+        let (pd, pg) = (ps[12], ps[13]);
+        if let Ok(j) = Jpda::new(pd, pg, kappa)
+            && let Ok(a) = j.with_solver(solver).associate(&lm, &pri)
+        {
+            prop_assert!(well_formed(&a, n, m));
+        }
+        if let Ok(j) = Jipda::new(pd, pg, kappa)
+            && let Ok(a) = j.with_survival(ps[14]).with_solver(solver).associate(&lm, &pri)
+        {
+            prop_assert!(well_formed(&a, n, m));
+            prop_assert!(a.existence.unwrap().iter().all(|e| (0.0..=1.0).contains(e)));
+        }
+        if let Ok(a) = (Pda { pd, prob_gate: pg, clutter_density: kappa }).associate(&lm, &pri) {
+            prop_assert!(well_formed(&a, n, m));
+        }
+        if let Ok(g) = Gnn::new(pd, pg, kappa)
+            && let Ok(a) = g.associate(&lm, &pri)
+        {
+            prop_assert!(well_formed(&a, n, m));
+        }
+        if let Ok(a) = PaperLikelihood.associate(&lm, &pri) { prop_assert!(well_formed(&a, n, m)); }
+    }
+}
