@@ -47,7 +47,6 @@ use quarry_filter::ekf::{self, MeasurementPrediction};
 use quarry_filter::{
     Bicycle, ConstantVelocity2, FilterError, RangeBearing, RangeBearingCv, Unicycle, UpdateForm,
 };
-use rand::Rng;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -1294,6 +1293,7 @@ pub fn filter_seed(run: u64, particles: usize) -> u64 {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // l indexes several parallel per-target arrays
 mod tests {
     use super::*;
     use quarry_sim::slamot::SlamotScenarioConfig;
@@ -1418,6 +1418,139 @@ mod tests {
             res.target_slot.iter().all(Option::is_some),
             "every robot tracked"
         );
+    }
+
+    /// The reproduction protocol of spec §4.3 (E1, E4, E6, part of E2); prints a table.
+    /// `cargo test -p quarry-trackers --release slamot::tests::protocol -- --ignored --nocapture`
+    #[test]
+    #[ignore = "minutes in debug; the reproduction numbers of docs/slamot.md"]
+    fn protocol() {
+        let runs: u64 = std::env::var("SLAMOT_RUNS").map_or(20, |v| v.parse().unwrap());
+        let clutter = 2.0 / (30.0 * 2.0 * std::f64::consts::PI);
+        let s1 = |mode| SlamotConfig {
+            association: mode,
+            p_detect: 0.9,
+            clutter_density: clutter,
+            ..SlamotConfig::default()
+        };
+        let cases: Vec<(&str, SlamotConfig, SlamotScenarioConfig)> = vec![
+            (
+                "S0 jpda",
+                SlamotConfig::default(),
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "S0 paper",
+                SlamotConfig {
+                    association: AssociationMode::Paper,
+                    ..SlamotConfig::default()
+                },
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "S0 jpda+eq11",
+                SlamotConfig {
+                    target_weight: TargetWeight::PaperEq11,
+                    ..SlamotConfig::default()
+                },
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "S0 jipda",
+                SlamotConfig {
+                    association: AssociationMode::Jipda,
+                    ..SlamotConfig::default()
+                },
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "S1 jpda",
+                s1(AssociationMode::Jpda),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "S1 paper",
+                s1(AssociationMode::Paper),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "S1 jipda",
+                s1(AssociationMode::Jipda),
+                SlamotScenarioConfig::s1(),
+            ),
+        ];
+        let only = std::env::var("SLAMOT_CASE").unwrap_or_default();
+        for (name, cfg, scen) in cases {
+            if !name.contains(only.as_str()) {
+                continue;
+            }
+            let mut rm = Vec::new();
+            let mut rv = Vec::new();
+            let mut tm = vec![Vec::new(); 3];
+            let mut tv = vec![Vec::new(); 3];
+            let mut losses = 0;
+            let mut rs = 0.0;
+            let mut ms = 0.0;
+            for r in 0..runs {
+                let res = run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles)).unwrap();
+                let (m, v) = mean_var(&res.robot_err);
+                rm.push(m);
+                rv.push(v);
+                for l in 0..3 {
+                    let (m, v) = mean_var(&res.target_err[l]);
+                    tm[l].push(m);
+                    tv[l].push(v);
+                }
+                losses += usize::from(res.swap_or_loss);
+                rs += res.resample_rate;
+                ms += res.ms_per_step;
+            }
+            let f = |v: &[f64]| {
+                let mn = v.iter().copied().fold(f64::INFINITY, f64::min);
+                let mx = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                format!("{:.3} [{mn:.3}, {mx:.3}]", mean_var(v).0)
+            };
+            eprintln!(
+                "{name}: robot {} var {:.4} | t1 {} var {:.4} | t2 {} var {:.4} | t3 {} var {:.4} | losses {losses}/{runs} | resample {:.2} | ms/step {:.3}",
+                f(&rm),
+                mean_var(&rv).0,
+                f(&tm[0]),
+                mean_var(&tv[0]).0,
+                f(&tm[1]),
+                mean_var(&tv[1]).0,
+                f(&tm[2]),
+                mean_var(&tv[2]).0,
+                rs / runs as f64,
+                ms / runs as f64
+            );
+        }
+        if let Ok(ns) = std::env::var("SLAMOT_SWEEP") {
+            for n in ns.split(',').map(|v| v.parse::<usize>().unwrap()) {
+                let cfg = SlamotConfig {
+                    particles: n,
+                    ..SlamotConfig::default()
+                };
+                let mut rm = Vec::new();
+                let mut tm = vec![Vec::new(); 3];
+                for r in 0..runs {
+                    let res =
+                        run_simulated(&cfg, &SlamotScenarioConfig::s0(), r, filter_seed(r, n))
+                            .unwrap();
+                    rm.push(mean_var(&res.robot_err).0);
+                    for l in 0..3 {
+                        tm[l].push(mean_var(&res.target_err[l]).0);
+                    }
+                }
+                let (m, v) = mean_var(&rm);
+                eprintln!(
+                    "sweep N {n}: robot {m:.4} (se {:.4}) targets {:.4} {:.4} {:.4}",
+                    (v / (runs as f64 - 1.0).max(1.0)).sqrt(),
+                    mean_var(&tm[0]).0,
+                    mean_var(&tm[1]).0,
+                    mean_var(&tm[2]).0
+                );
+            }
+        }
     }
 
     #[test]
