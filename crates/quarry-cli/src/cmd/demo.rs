@@ -69,7 +69,11 @@ pub struct Row {
 pub type RowFn = fn(&DemoArgs) -> Result<Vec<Row>, CmdError>;
 
 /// Every demo, in table order: `(name, function)`.
-pub const DEMOS: &[(&str, RowFn)] = &[("kf-cv", kf_cv), ("slamot", slamot), ("lidar-people", lidar_people)];
+pub const DEMOS: &[(&str, RowFn)] = &[
+    ("kf-cv", kf_cv),
+    ("slamot", slamot),
+    ("lidar-people", lidar_people),
+];
 
 /// PFJPDA_SLAMOT (paper 000) on S0: one run, N = 50, robot and target errors beside the paper's.
 fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
