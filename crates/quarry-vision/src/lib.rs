@@ -43,6 +43,7 @@ pub mod convert;
 mod error;
 #[cfg(feature = "io")]
 pub mod io;
+pub mod lbp;
 pub mod mapping;
 pub mod matching;
 pub mod minima;
