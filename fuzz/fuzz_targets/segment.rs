@@ -6,7 +6,10 @@
 
 use libfuzzer_sys::fuzz_target;
 use quarry_core::Plane;
-use quarry_vision::{Connectivity, RampBlurWatershed, RegionAdjacency, RegionMapping, WatershedOptions, flood, regional_minima};
+use quarry_vision::{
+    Connectivity, RampBlurWatershed, RegionAdjacency, RegionMapping, WatershedOptions, flood,
+    regional_minima,
+};
 
 fuzz_target!(|data: &[u8]| {
     if data.len() < 4 {
@@ -28,7 +31,11 @@ fuzz_target!(|data: &[u8]| {
     let seg = RampBlurWatershed {
         sigma,
         levels: 256,
-        connectivity: if eight { Connectivity::Eight } else { Connectivity::Four },
+        connectivity: if eight {
+            Connectivity::Eight
+        } else {
+            Connectivity::Four
+        },
     };
     let valid = w >= 2 && h >= 2 && sigma.is_finite() && sigma > 0.0 && sigma < 4000.0;
     match seg.run(&img) {
@@ -39,7 +46,10 @@ fuzz_target!(|data: &[u8]| {
             assert!(k >= 1);
             assert!(s.labels.data.iter().all(|&l| (1..=k).contains(&l)));
             for m in &s.minima {
-                assert_eq!(s.labels.get(m.representative.0, m.representative.1), Some(&m.id));
+                assert_eq!(
+                    s.labels.get(m.representative.0, m.representative.1),
+                    Some(&m.id)
+                );
             }
             let adj = RegionAdjacency::from_segmentation(s).unwrap();
             assert_eq!(adj.neighbours.len(), k as usize);
@@ -61,7 +71,12 @@ fuzz_target!(|data: &[u8]| {
             Ok(m) => {
                 assert!(finite);
                 let s = flood(&relief, &m, WatershedOptions::default()).unwrap();
-                assert!(s.labels.data.iter().all(|&l| l >= 1 && l as usize <= m.len()));
+                assert!(
+                    s.labels
+                        .data
+                        .iter()
+                        .all(|&l| l >= 1 && l as usize <= m.len())
+                );
             }
             Err(_) => assert!(!finite),
         }
