@@ -41,6 +41,7 @@ pub mod blur;
 pub mod colour;
 pub mod convert;
 mod error;
+pub mod histogram;
 #[cfg(feature = "io")]
 pub mod io;
 pub mod lbp;
