@@ -44,6 +44,7 @@ mod error;
 pub mod histogram;
 #[cfg(feature = "io")]
 pub mod io;
+pub mod kernel;
 pub mod lbp;
 pub mod mapping;
 pub mod matching;
