@@ -50,6 +50,7 @@ pub mod mapping;
 pub mod matching;
 pub mod minima;
 pub mod motion;
+pub mod patches;
 pub mod ramp;
 #[cfg(feature = "io")]
 pub mod render;
