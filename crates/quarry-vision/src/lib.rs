@@ -5,7 +5,9 @@
 //! minima ([`minima`]), priority-flood (Meyer) watershed without lines ([`watershed`]), region
 //! adjacency and statistics ([`adjacency`]), region mapping between frames ([`mapping`]), minimum
 //! trajectories and the moving-point test ([`motion`]), SIFT ([`sift`]) and descriptor matching
-//! ([`matching`]).
+//! ([`matching`]). Appearance descriptors of spec 001: hue binning ([`colour`]), Ojala LBP with
+//! riu2 / u2 mappings ([`lbp`]), normalised and depth histograms ([`histogram`]), pixel kernels
+//! including the depth band ([`kernel`]) and N×N patch histograms ([`patches`]).
 //!
 //! ```
 //! use quarry_core::{Plane, Segmenter};
@@ -60,11 +62,16 @@ pub mod watershed;
 
 pub use adjacency::{RegionAdjacency, RegionStats, region_stats};
 pub use blur::{Border, GaussianKernel, gaussian_blur_f32, gaussian_blur_f64};
+pub use colour::HueBinner;
 pub use error::VisionError;
+pub use histogram::{DepthHistogram, Histogram};
+pub use kernel::{DepthBand, PixelWeight};
+pub use lbp::LbpMapping;
 pub use mapping::{LinkKind, RegionMapping};
 pub use matching::{BruteForceL2, DMatch, DescriptorMatcher, KdTreeMatcher, MatchOptions};
 pub use minima::{Connectivity, Minima, regional_minima};
 pub use motion::{MinimumTrajectories, MotionStats, MotionTest};
+pub use patches::{PatchGrid, PatchHistograms, patch_histograms};
 pub use ramp::add_regular_ramp;
 pub use segment::{RampBlurWatershed, SegmentOutput};
 pub use sift::{Sift, SiftDescriptor, SiftParams};
