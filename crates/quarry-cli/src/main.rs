@@ -54,9 +54,10 @@ enum Command {
     // the `about` / `long_about` written on each Args struct in cmd/<name>.rs.
     Demo(cmd::demo::DemoArgs),
     Eval(cmd::eval::EvalArgs),
-    Lidar(cmd::lidar::LidarArgs),
     /// RBPF SLAM + multi-target tracking (paper 000) on its scenario or on MRCLAM data.
     Slamot(cmd::slamot::SlamotArgs),
+    /// People tracking with distributed 2-D laser scanners (paper 003) in the simulated room.
+    Lidar(cmd::lidar::LidarArgs),
     /// SIFT keypoints of an image, or keypoints and matches of two images.
     Sift(cmd::sift::SiftArgs),
     Segment(cmd::segment::SegmentArgs),
@@ -71,8 +72,8 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Demo(a) => cmd::demo::run(a, &out),
         Command::Eval(a) => cmd::eval::run(a, &out),
-        Command::Lidar(a) => cmd::lidar::run(a, &out),
         Command::Slamot(a) => cmd::slamot::run(a, &out),
+        Command::Lidar(a) => cmd::lidar::run(a, &out),
         Command::Sift(a) => cmd::sift::run(a, &out),
         Command::Segment(a) => cmd::segment::run(a, &out),
         Command::Motion(a) => cmd::motion::run(a, &out),

@@ -13,8 +13,8 @@
 //! ```
 
 mod error;
-pub mod mrclam;
 pub mod lidar_room;
+pub mod mrclam;
 pub mod slamot;
 
 pub use error::SimError;

@@ -75,6 +75,11 @@ pub const DEMOS: &[(&str, RowFn)] = &[
     ("lidar-people", lidar_people),
 ];
 
+/// The lidar people tracker (paper 003), `faithful` preset on band_mid.
+fn lidar_people(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
+    super::lidar::demo_rows(args.seed)
+}
+
 /// PFJPDA_SLAMOT (paper 000) on S0: one run, N = 50, robot and target errors beside the paper's.
 fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
     super::slamot::demo_rows(args.seed)
@@ -84,11 +89,6 @@ fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
 struct DemoReport<'a> {
     seed: u64,
     rows: &'a [Row],
-}
-
-/// The lidar people tracker (paper 003), `faithful` preset on band_mid.
-fn lidar_people(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
-    super::lidar::demo_rows(args.seed)
 }
 
 /// Runs `quarry demo`.
