@@ -374,6 +374,22 @@ mod tests {
             prop_assert_eq!(a, b);
         }
 
+        /// Spec 001 §6.1.4: our riu2 class is `8 − k` of imageproc's class `k` for uniform codes,
+        /// and 9 maps to 9.
+        #[test]
+        fn imageproc_cross_check(g in image()) {
+            let img = image::GrayImage::from_raw(g.width, g.height, g.data.clone()).unwrap();
+            let ours = lbp_class_map(&g, LbpMapping::Riu2).unwrap();
+            for y in 1..g.height - 1 {
+                for x in 1..g.width - 1 {
+                    let theirs = imageproc::local_binary_patterns::local_binary_pattern(&img, x, y).unwrap();
+                    let k = RIU2_TABLE[usize::from(theirs)];
+                    let expected = if k == 9 { 9 } else { 8 - k };
+                    prop_assert_eq!(*ours.get(x, y).unwrap(), expected);
+                }
+            }
+        }
+
         /// The complement convention (centre strictly brighter, as imageproc) gives riu2 class 8 − k
         /// for uniform codes and 9 for the rest.
         #[test]
