@@ -8,7 +8,8 @@ use serde::{Deserialize, Serialize};
 pub struct MinimumInfo {
     /// The label of the minimum (and of its region), starting at 1.
     pub id: u32,
-    /// One pixel `(x, y)` of the minimum (the first in raster order).
+    /// One pixel `(x, y)` of the minimum (quarry-vision picks the plateau pixel nearest the
+    /// centroid, spec 004 §2.4).
     pub representative: (u32, u32),
     /// Number of pixels of the minimum plateau.
     pub size: usize,
