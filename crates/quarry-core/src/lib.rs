@@ -38,6 +38,7 @@ mod particles;
 mod plane;
 mod report;
 pub mod rng;
+pub mod stats;
 mod time;
 mod tracker;
 mod vision;
