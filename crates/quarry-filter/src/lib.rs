@@ -48,6 +48,7 @@ pub mod models;
 pub mod particles;
 pub mod pda;
 pub mod rbpf;
+mod small;
 pub mod store;
 
 pub use ekf::{Ekf, Innovation, UpdateForm};
