@@ -186,13 +186,13 @@ impl<const D: usize, const Z: usize> MeasurementPrediction<D, Z> {
                 // (I − KH) P (I − KH)ᵀ + K R Kᵀ, associated as B = P − K (P Hᵀ)ᵀ = (I − KH) P,
                 // then B (I − KH)ᵀ = B − (B Hᵀ) Kᵀ: the same congruence (first-order
                 // insensitive to errors in K), without forming I − KH.
-                let b = prior_cov - small::mul_tr(k, &self.pht);
+                let b = prior_cov - small::mul(k, &self.pht.transpose());
                 let c = small::mul(k, &self.r) - small::mul_tr_sparse(&b, &self.h);
-                small::symmetrise(&(b + small::mul_tr(&c, k)))
+                small::symmetrise(&(b + small::mul(&c, &k.transpose())))
             }
-            UpdateForm::Standard => prior_cov - small::mul_tr(k, &self.pht),
+            UpdateForm::Standard => prior_cov - small::mul(k, &self.pht.transpose()),
             UpdateForm::Symmetrised => {
-                small::symmetrise(&(prior_cov - small::mul_tr(k, &self.pht)))
+                small::symmetrise(&(prior_cov - small::mul(k, &self.pht.transpose())))
             }
         }
     }

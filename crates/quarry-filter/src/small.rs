@@ -35,27 +35,6 @@ pub(crate) fn mul<const R: usize, const K: usize, const C: usize>(
     out
 }
 
-/// `A Bᵀ`.
-#[inline(always)]
-pub(crate) fn mul_tr<const R: usize, const K: usize, const C: usize>(
-    a: &SMatrix<f64, R, K>,
-    b: &SMatrix<f64, C, K>,
-) -> SMatrix<f64, R, C> {
-    let a = &a.data.0;
-    let b = &b.data.0;
-    let mut out = SMatrix::<f64, R, C>::zeros();
-    let o = &mut out.data.0;
-    for j in 0..C {
-        for k in 0..K {
-            let bjk = b[k][j];
-            for i in 0..R {
-                o[j][i] += a[k][i] * bjk;
-            }
-        }
-    }
-    out
-}
-
 /// `A Bᵀ` skipping the zero entries of `B`.
 ///
 /// Meant for a structured `B` (a motion or measurement Jacobian): once the model is inlined the
@@ -251,12 +230,10 @@ mod tests {
             let d = Matrix2x4::from_column_slice(&v[40..48]);
             let x = Vector4::new(v[0], v[5], v[9], v[13]);
             prop_assert!((mul(&a, &b) - a * b).amax() < 1e-12);
-            prop_assert!((mul_tr(&a, &b) - a * b.transpose()).amax() < 1e-12);
-            prop_assert!((mul(&a, &c) - a * c).amax() < 1e-12);
+                        prop_assert!((mul(&a, &c) - a * c).amax() < 1e-12);
             prop_assert!((mul(&d, &a) - d * a).amax() < 1e-12);
-            prop_assert!((mul_tr(&c, &c) - c * c.transpose()).amax() < 1e-12);
-            prop_assert!((mul_vec(&a, &x) - a * x).amax() < 1e-12);
-            let spd = mul_tr(&a, &a) + Matrix4::identity();
+                        prop_assert!((mul_vec(&a, &x) - a * x).amax() < 1e-12);
+            let spd = a * a.transpose() + Matrix4::identity();
             let mut sparse = b;
             sparse[(1, 2)] = 0.0;
             sparse[(3, 0)] = 0.0;
