@@ -111,6 +111,7 @@ pub fn flood<T: Relief>(
 ///
 /// A stable counting sort into about n/2 value buckets (the bucket index
 /// `⌊(v − v_min)·scale⌋` is monotone in `v` under IEEE rounding) and a small sort per bucket.
+#[inline(never)]
 fn sorted_pixels<T: Relief>(d: &[T]) -> Vec<(u64, u32)> {
     let n = d.len();
     let (vmin, vmax) = d
@@ -148,7 +149,7 @@ fn sorted_pixels<T: Relief>(d: &[T]) -> Vec<(u64, u32)> {
         let s = &mut out[start[b] as usize..start[b + 1] as usize];
         match s.len() {
             0 | 1 => {}
-            2..=24 => insertion_sort(s),
+            2..=32 => insertion_sort(s),
             _ => s.sort_unstable(),
         }
     }
@@ -173,13 +174,33 @@ fn flood_sorted<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: 
     let n = d.len();
     let h = n / w;
     let sorted = sorted_pixels(d);
-    // push order of the static items (seeds in raster order first); only consulted to order the
-    // members of a group of equal values
+    // pixels sharing their value with another pixel (members of a tie group): only their push
+    // order matters, so only they get a sequence number
+    let mut tie = Bits::new(n);
+    for pair in sorted.windows(2) {
+        if pair[0].0 == pair[1].0 {
+            tie.set(pair[0].1 as usize);
+            tie.set(pair[1].1 as usize);
+        }
+    }
+    let mut edge = Bits::new(n);
+    for x in 0..w {
+        edge.set(x);
+        edge.set((h - 1) * w + x);
+    }
+    for y in 0..h {
+        edge.set(y * w);
+        edge.set(y * w + w - 1);
+    }
+    // push order of the static items (seeds in raster order first), stored for tie pixels only
+    // (`vec!` of zeros is lazily mapped: untouched pages cost nothing)
     let mut seq = vec![0u32; n];
     let mut next_seq = 0u32;
-    for (s, &l) in seq.iter_mut().zip(labels.iter()) {
+    for (p, &l) in labels.iter().enumerate() {
         if l != 0 {
-            *s = next_seq;
+            if tie.get(p) {
+                seq[p] = next_seq;
+            }
             next_seq += 1;
         }
     }
@@ -198,6 +219,8 @@ fn flood_sorted<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: 
         fifo: Vec::new(),
         offs,
         lin: &lin,
+        tie: &tie,
+        edge: &edge,
     };
     let mut group: Vec<(u32, u32)> = Vec::new();
     let mut i = 0;
@@ -245,23 +268,42 @@ struct FloodState<'a, T> {
     fifo: Vec<u32>,
     offs: &'static [(i32, i32)],
     lin: &'a [isize],
+    tie: &'a Bits,
+    edge: &'a Bits,
+}
+
+/// A fixed-size bit set over pixel indices.
+struct Bits(Vec<u64>);
+
+impl Bits {
+    fn new(n: usize) -> Self {
+        Self(vec![0; n.div_ceil(64)])
+    }
+    #[inline]
+    fn set(&mut self, i: usize) {
+        self.0[i >> 6] |= 1 << (i & 63);
+    }
+    #[inline]
+    fn get(&self, i: usize) -> bool {
+        self.0[i >> 6] >> (i & 63) & 1 == 1
+    }
 }
 
 impl<T: Relief> FloodState<'_, T> {
     /// Pops `p` at level `lkey`: labels its unlabelled neighbours (static push when higher than
     /// the level, FIFO push otherwise).
-    #[inline]
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
     fn expand(&mut self, p: usize, lkey: u64) {
         let lab = self.labels[p];
-        let (w, h) = (self.w, self.h);
-        let y = p / w;
-        let x = p - y * w;
-        if x > 0 && y > 0 && x + 1 < w && y + 1 < h {
+        if !self.edge.get(p) {
             for &o in self.lin {
                 let q = p.wrapping_add_signed(o);
                 self.visit(q, lab, lkey);
             }
         } else {
+            let (w, h) = (self.w, self.h);
+            let (x, y) = (p % w, p / w);
             for &(dx, dy) in self.offs {
                 let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
                 if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
@@ -272,12 +314,15 @@ impl<T: Relief> FloodState<'_, T> {
         }
     }
 
-    #[inline]
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
     fn visit(&mut self, q: usize, lab: u32, lkey: u64) {
         if self.labels[q] == 0 {
             self.labels[q] = lab;
             if level_key(self.d[q].to_f64()) > lkey {
-                self.seq[q] = self.next_seq;
+                if self.tie.get(q) {
+                    self.seq[q] = self.next_seq;
+                }
                 self.next_seq += 1;
             } else {
                 self.fifo.push(q as u32);
