@@ -5,7 +5,7 @@ use crate::VisionError;
 use crate::blur::{Border, GaussianKernel, blur_rows};
 use crate::minima::{Connectivity, regional_minima};
 use crate::ramp::{checked_coefficients, ramp_axes, ramp_row};
-use crate::watershed::{WatershedOptions, flood};
+use crate::watershed::{WatershedOptions, flood_minima};
 use quarry_core::{CoreError, Plane, Segmentation, Segmenter};
 
 /// Ramp + blur + watershed segmenter (implements [`Segmenter`]).
@@ -89,13 +89,13 @@ impl RampBlurWatershed {
     pub fn run(&self, frame: &Plane<u8>) -> Result<SegmentOutput, VisionError> {
         let relief = self.relief(frame)?;
         let seeds = regional_minima(&relief, self.connectivity)?;
-        let segmentation = flood(
+        let segmentation = flood_minima(
             &relief,
-            &seeds,
+            seeds,
             WatershedOptions {
                 connectivity: self.connectivity,
             },
-        )?;
+        );
         Ok(SegmentOutput {
             relief,
             segmentation,

@@ -107,6 +107,23 @@ pub fn flood<T: Relief>(
     })
 }
 
+/// [`flood`] from seeds computed by [`regional_minima`] on the same relief (hence valid), reusing
+/// their label buffer instead of copying it.
+pub(crate) fn flood_minima<T: Relief>(
+    relief: &Plane<T>,
+    seeds: Minima,
+    options: WatershedOptions,
+) -> Segmentation {
+    let Minima { mut labels, minima } = seeds;
+    flood_sorted(
+        &relief.data,
+        relief.width as usize,
+        &mut labels.data,
+        options.connectivity,
+    );
+    Segmentation { labels, minima }
+}
+
 /// `(level_key, pixel)` of every pixel, sorted (ties of equal keys by pixel index).
 ///
 /// A stable counting sort into about n/2 value buckets (the bucket index
@@ -296,12 +313,7 @@ impl<T: Relief> FloodState<'_, T> {
     #[inline(always)]
     fn expand(&mut self, p: usize, lkey: u64) {
         let lab = self.labels[p];
-        if !self.edge.get(p) {
-            for &o in self.lin {
-                let q = p.wrapping_add_signed(o);
-                self.visit(q, lab, lkey);
-            }
-        } else {
+        if self.edge.get(p) {
             let (w, h) = (self.w, self.h);
             let (x, y) = (p % w, p / w);
             for &(dx, dy) in self.offs {
@@ -310,6 +322,11 @@ impl<T: Relief> FloodState<'_, T> {
                     continue;
                 }
                 self.visit(qy as usize * w + qx as usize, lab, lkey);
+            }
+        } else {
+            for &o in self.lin {
+                let q = p.wrapping_add_signed(o);
+                self.visit(q, lab, lkey);
             }
         }
     }
