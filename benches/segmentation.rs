@@ -145,7 +145,7 @@ fn segmentation_cpu(c: &mut Criterion) {
                     for _ in 0..iters {
                         f();
                     }
-                    thread_cpu().unwrap() - t0
+                    thread_cpu().unwrap().saturating_sub(t0)
                 })
             });
         });
