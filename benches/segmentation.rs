@@ -9,14 +9,20 @@
 //! * the whole segmentation step of spec 004 (ramp + f64 blur σ = 8 + minima + watershed,
 //!   8-connected) on one thread, and its stages.
 //!
+//! A second group, `segmentation-cpu`, measures the same single-thread workloads in *CPU time of
+//! the running thread* (`/proc/thread-self/schedstat`, Linux; the group is skipped elsewhere)
+//! instead of wall time, so that the figures stay meaningful while other processes load the
+//! machine (criterion still prints them as "time").
+//!
 //! `cargo bench --bench segmentation -- --noplot`
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use quarry::vision::{
     Connectivity, RampBlurWatershed, WatershedOptions, add_regular_ramp, flood, gaussian_blur_f32,
     gaussian_blur_f64, regional_minima,
 };
+use std::fs;
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -90,6 +96,9 @@ fn segmentation(c: &mut Criterion) {
             black_box(flood(&relief, &s, WatershedOptions::default()).unwrap())
         });
     });
+    g.bench_function("relief (ramp fused into f64 blur) 1 thread", |b| {
+        b.iter(|| one.install(|| black_box(seg.relief(black_box(&img)).unwrap())));
+    });
     g.bench_function(
         "whole step (ramp + blur + minima + watershed) 1 thread",
         |b| {
@@ -99,5 +108,72 @@ fn segmentation(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, segmentation);
+/// CPU time consumed so far by the calling thread (scheduler accounting, nanoseconds).
+fn thread_cpu() -> Option<Duration> {
+    let s = fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: u64 = s.split_whitespace().next()?.parse().ok()?;
+    Some(Duration::from_nanos(ns))
+}
+
+/// The single-thread workloads timed in CPU time of the (one) rayon worker that runs them.
+fn segmentation_cpu(c: &mut Criterion) {
+    let Some(img) = photo() else { return };
+    if thread_cpu().is_none() {
+        eprintln!("skipping segmentation-cpu: no /proc/thread-self/schedstat");
+        return;
+    }
+    let img32 = img.map(|&v| f32::from(v));
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let blurred = gaussian_blur_f32(&img32, 8.0).unwrap();
+    let seg = RampBlurWatershed::default();
+    let relief = seg.relief(&img).unwrap();
+    let seeds4 = regional_minima(&blurred, Connectivity::Four).unwrap();
+    let mut g = c.benchmark_group("segmentation-cpu");
+    // equal iteration counts per sample (~0.1 s each), so the scheduler's accounting granularity
+    // is small against every sample
+    g.sampling_mode(SamplingMode::Flat)
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(4));
+    let mut cpu = |name: &str, f: &mut (dyn FnMut() + Send)| {
+        g.bench_function(name, |b| {
+            b.iter_custom(|iters| {
+                one.install(|| {
+                    let t0 = thread_cpu().unwrap();
+                    for _ in 0..iters {
+                        f();
+                    }
+                    thread_cpu().unwrap().saturating_sub(t0)
+                })
+            });
+        });
+    };
+    cpu("blur f32 sigma8 800x450", &mut || {
+        black_box(gaussian_blur_f32(black_box(&img32), 8.0).unwrap());
+    });
+    cpu("regional minima 4-conn blurred f32", &mut || {
+        black_box(regional_minima(black_box(&blurred), Connectivity::Four).unwrap());
+    });
+    cpu("watershed 4-conn blurred f32", &mut || {
+        let opts = WatershedOptions {
+            connectivity: Connectivity::Four,
+        };
+        black_box(flood(black_box(&blurred), &seeds4, opts).unwrap());
+    });
+    cpu("relief (ramp fused into f64 blur)", &mut || {
+        black_box(seg.relief(black_box(&img)).unwrap());
+    });
+    cpu("minima + watershed 8-conn f64 relief", &mut || {
+        let s = regional_minima(black_box(&relief), Connectivity::Eight).unwrap();
+        black_box(flood(&relief, &s, WatershedOptions::default()).unwrap());
+    });
+    cpu("whole step (ramp + blur + minima + watershed)", &mut || {
+        black_box(seg.run(black_box(&img)).unwrap());
+    });
+    g.finish();
+}
+
+criterion_group!(benches, segmentation, segmentation_cpu);
 criterion_main!(benches);

@@ -135,45 +135,57 @@ pub fn regional_minima<T: Relief>(
     let (w, h) = (relief.width as usize, relief.height as usize);
     let d = &relief.data;
     let offs = connectivity.offsets();
-    // state: 0 = unknown, 1 = has a lower neighbour or belongs to a non-minimal plateau,
-    // 2 = processed minimum pixel.
+    // `done`: pixel already classified as part of a flooded plateau (or a single-pixel minimum)
     let mut labels = vec![0u32; w * h];
     let mut done = vec![false; w * h];
     let mut minima = Vec::new();
     let mut stack: Vec<usize> = Vec::new();
     let mut plateau: Vec<usize> = Vec::new();
     let mut in_plateau = vec![false; 0];
+    let lin: Vec<isize> = offs
+        .iter()
+        .map(|&(dx, dy)| dy as isize * w as isize + dx as isize)
+        .collect();
     for y in 0..h {
+        let row_inside = y > 0 && y + 1 < h;
         for x in 0..w {
             let p = y * w + x;
             if done[p] {
                 continue;
             }
             let v = d[p];
-            // fast path: classify with the neighbours
+            // fast path: classify with the neighbours. A pixel with a lower neighbour is not a
+            // minimum, nor is any plateau containing it (a plateau member reached later floods
+            // the plateau and finds that neighbour), so it needs no bookkeeping.
             let mut lower = false;
             let mut equal = false;
-            let interior = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
-            for &(dx, dy) in offs {
-                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
-                if !interior && (qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize) {
-                    continue;
+            if row_inside && x > 0 && x + 1 < w {
+                for &o in &lin {
+                    let u = d[p.wrapping_add_signed(o)];
+                    if u < v {
+                        lower = true;
+                        break;
+                    }
+                    equal |= u == v;
                 }
-                let q = qy as usize * w + qx as usize;
-                let u = d[q];
-                if u < v {
-                    lower = true;
-                    break;
-                }
-                if u == v {
-                    equal = true;
+            } else {
+                for &(dx, dy) in offs {
+                    let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                    if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
+                        continue;
+                    }
+                    let u = d[qy as usize * w + qx as usize];
+                    if u < v {
+                        lower = true;
+                        break;
+                    }
+                    equal |= u == v;
                 }
             }
-            if lower && !equal {
-                done[p] = true;
+            if lower {
                 continue;
             }
-            if !lower && !equal {
+            if !equal {
                 done[p] = true;
                 let id = minima.len() as u32 + 1;
                 labels[p] = id;

@@ -36,8 +36,35 @@ pub fn add_regular_ramp<T: GreyLevel>(
     img: &Plane<T>,
     levels: u32,
 ) -> Result<Plane<f64>, VisionError> {
-    let (alpha, beta) = ramp_coefficients(levels)?;
-    check_grey(img, "regular ramp")?;
+    let (alpha, beta) = checked_coefficients(img, levels, "regular ramp")?;
+    let (w, h) = (img.width as usize, img.height as usize);
+    let (gx, gy) = ramp_axes(w, h, beta);
+    let mut data = Vec::with_capacity(w * h);
+    data.resize(w * h, 0.0);
+    for ((row, &ry), out) in img
+        .data
+        .chunks_exact(w)
+        .zip(&gy)
+        .zip(data.chunks_exact_mut(w))
+    {
+        ramp_row(row, alpha, &gx, ry, out);
+    }
+    Ok(Plane {
+        width: img.width,
+        height: img.height,
+        data,
+    })
+}
+
+/// Validates a grey image for the ramp (non-empty, consistent, every pixel below `levels`) and
+/// returns `(α, β)`.
+pub(crate) fn checked_coefficients<T: GreyLevel>(
+    img: &Plane<T>,
+    levels: u32,
+    what: &'static str,
+) -> Result<(f64, f64), VisionError> {
+    let coefficients = ramp_coefficients(levels)?;
+    check_grey(img, what)?;
     if let Some(&v) = img.data.iter().find(|&&v| Into::<u32>::into(v) >= levels) {
         return Err(CoreError::invalid(
             "levels",
@@ -48,21 +75,22 @@ pub fn add_regular_ramp<T: GreyLevel>(
         )
         .into());
     }
-    let (w, h) = (img.width as usize, img.height as usize);
-    let (gx, gy) = ramp_axes(w, h, beta);
-    let mut data = Vec::with_capacity(w * h);
-    for (row, &ry) in img.data.chunks_exact(w).zip(&gy) {
-        data.extend(
-            row.iter()
-                .zip(&gx)
-                .map(|(&v, &rx)| alpha * Into::<f64>::into(v) + (rx + ry)),
-        );
+    Ok(coefficients)
+}
+
+/// The ramped row `y` of eq. (2), `α I(x, y) + (β x/W + β y/H)`, written into `out` (the exact
+/// expression of [`add_regular_ramp`], so fused and materialised ramps are bit-identical).
+#[inline]
+pub(crate) fn ramp_row<T: GreyLevel>(
+    src_row: &[T],
+    alpha: f64,
+    gx: &[f64],
+    ry: f64,
+    out: &mut [f64],
+) {
+    for ((o, &v), &rx) in out.iter_mut().zip(src_row).zip(gx) {
+        *o = alpha * Into::<f64>::into(v) + (rx + ry);
     }
-    Ok(Plane {
-        width: img.width,
-        height: img.height,
-        data,
-    })
 }
 
 /// `β x / W` for every column and `β y / H` for every row (the two separable halves of β G).

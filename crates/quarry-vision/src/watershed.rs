@@ -8,15 +8,29 @@
 //! fully deterministic. There are no watershed lines: every pixel gets a label in 1..K
 //! ([`boundary_mask`] gives a display-only boundary).
 //!
-//! The queue is a hierarchical queue: coarse level buckets in front of a binary heap holding
-//! only the current bucket, with the same pop order as one binary heap on
-//! `(level.total_cmp, seq)` (tested).
+//! # Implementation: a presorted scan instead of a priority queue
+//!
+//! A pixel `q` pushed by a pixel popped at level `ℓ` gets the key `B(q)` when `B(q) > ℓ` (a
+//! *static* key: it does not depend on when `q` was pushed) and the key `ℓ` otherwise (it joins
+//! the first-in-first-out queue of the current level). Flood levels never decrease, so the pop
+//! order of one binary heap on `(level.total_cmp, seq)` is reproduced exactly by
+//!
+//! 1. sorting all pixels once by `B` (`total_cmp`; a counting sort into value buckets followed by
+//!    tiny per-bucket sorts), then
+//! 2. walking that order: at the group of pixels with value `v` the pixels already labelled are
+//!    exactly the static items of key `v` (they were pushed while the level was below `v`); they
+//!    are popped in push order (`seq`), and afterwards the FIFO of items pushed at level `v` is
+//!    drained. A pixel not yet labelled when the walk passes it will be pushed later at a higher
+//!    level and served by that level's FIFO.
+//!
+//! Each pixel is touched a constant number of times (O(n) besides the bucket sorts), with no heap
+//! and no per-item sequence numbers except one `u32` per pixel. The result is identical to the
+//! priority-queue formulation (tested against a binary-heap reference on random reliefs with many
+//! ties, and on `photo_gray`).
 
 use crate::VisionError;
 use crate::minima::{Connectivity, Minima, Relief, check_relief, regional_minima};
 use quarry_core::{Plane, Segmentation};
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 /// Options of [`flood`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -33,96 +47,13 @@ fn level_key(v: f64) -> u64 {
 }
 
 /// Inverse of [`level_key`].
+#[cfg(test)]
 #[inline]
 fn key_level(k: u64) -> f64 {
     if k >> 63 == 1 {
         f64::from_bits(k & !(1 << 63))
     } else {
         f64::from_bits(!k)
-    }
-}
-
-type Item = Reverse<(u64, u64, u32)>;
-
-/// A monotone priority queue over `(level, seq)` for the flood: a hierarchical queue of about
-/// n/64 coarse buckets (the level range split evenly) in front of an exact binary heap that
-/// holds only the current bucket. Flood levels never decrease, so the current bucket index only
-/// grows; items of later buckets wait in plain vectors. Pop order equals that of one binary heap
-/// on `(level.total_cmp, seq)` (tested), at O(1) per push and O(log m) per pop with m items per
-/// bucket.
-struct BucketQueue {
-    vmin: f64,
-    scale: f64,
-    buckets: Vec<Vec<Item>>,
-    cur: usize,
-    heap: BinaryHeap<Item>,
-    seq: u64,
-}
-
-impl BucketQueue {
-    fn new(vmin: f64, vmax: f64, n: usize) -> Self {
-        // few enough bucket headers to stay cache-resident, ~64 items per bucket on average
-        let nb = (n / 64).clamp(1, 1 << 16);
-        let range = vmax - vmin;
-        let scale = if range.is_finite() && range > 0.0 {
-            (nb - 1) as f64 / range
-        } else {
-            0.0
-        };
-        Self {
-            vmin,
-            scale: if scale.is_finite() { scale } else { 0.0 },
-            buckets: (0..nb).map(|_| Vec::new()).collect(),
-            cur: 0,
-            heap: BinaryHeap::new(),
-            seq: 0,
-        }
-    }
-
-    /// Pushes `v` at `level` (`key = level_key(level)`); `level` must not be below the last
-    /// popped level.
-    #[inline]
-    fn push(&mut self, level: f64, key: u64, v: u32) {
-        let seq = self.seq;
-        self.seq += 1;
-        // monotone in `level` (IEEE subtraction and scaling are monotone); NaN casts to 0
-        let idx = (((level - self.vmin) * self.scale) as usize).min(self.buckets.len() - 1);
-        if idx <= self.cur {
-            self.heap.push(Reverse((key, seq, v)));
-        } else {
-            self.buckets[idx].push(Reverse((key, seq, v)));
-        }
-    }
-
-    /// Pops the least `(level, seq)`: returns `(level key, value)`.
-    #[inline]
-    fn pop(&mut self) -> Option<(u64, u32)> {
-        loop {
-            if let Some(Reverse((k, _, v))) = self.heap.pop() {
-                return Some((k, v));
-            }
-            // move on to the next non-empty bucket
-            loop {
-                self.cur += 1;
-                if self.cur >= self.buckets.len() {
-                    return None;
-                }
-                if !self.buckets[self.cur].is_empty() {
-                    break;
-                }
-            }
-            let items = std::mem::take(&mut self.buckets[self.cur]);
-            let old = std::mem::replace(&mut self.heap, BinaryHeap::from(items));
-            // keep the drained heap's allocation for a later bucket
-            let mut spare = old.into_vec();
-            spare.clear();
-            if let Some(next) = self.buckets.get_mut(self.cur + 1)
-                && next.capacity() < spare.capacity()
-            {
-                spare.append(next);
-                *next = spare;
-            }
-        }
     }
 }
 
@@ -159,48 +90,13 @@ pub fn flood<T: Relief>(
         )
         .into());
     }
-    let (w, h) = (relief.width as usize, relief.height as usize);
-    let d = &relief.data;
     let mut labels = seeds.labels.data.clone();
-    // Seeds are pushed in raster order (the FIFO tie rule then serves equal seeds in raster
-    // order).
-    let (vmin, vmax) = d
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            let v = v.to_f64();
-            (lo.min(v), hi.max(v))
-        });
-    let mut heap = BucketQueue::new(vmin, vmax, d.len());
-    for (p, &l) in labels.iter().enumerate() {
-        if l != 0 {
-            let v = d[p].to_f64();
-            heap.push(v, level_key(v), p as u32);
-        }
-    }
-    let offs = options.connectivity.offsets();
-    while let Some((level, p)) = heap.pop() {
-        let p = p as usize;
-        let lab = labels[p];
-        let (x, y) = (p % w, p / w);
-        let interior = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
-        for &(dx, dy) in offs {
-            let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
-            if !interior && (qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize) {
-                continue;
-            }
-            let q = qy as usize * w + qx as usize;
-            if labels[q] == 0 {
-                labels[q] = lab;
-                let vq = d[q].to_f64();
-                let kq = level_key(vq);
-                if kq > level {
-                    heap.push(vq, kq, q as u32);
-                } else {
-                    heap.push(key_level(level), level, q as u32);
-                }
-            }
-        }
-    }
+    flood_sorted(
+        &relief.data,
+        relief.width as usize,
+        &mut labels,
+        options.connectivity,
+    );
     Ok(Segmentation {
         labels: Plane {
             width: relief.width,
@@ -209,6 +105,247 @@ pub fn flood<T: Relief>(
         },
         minima: seeds.minima.clone(),
     })
+}
+
+/// [`flood`] from seeds computed by [`regional_minima`] on the same relief (hence valid), reusing
+/// their label buffer instead of copying it.
+pub(crate) fn flood_minima<T: Relief>(
+    relief: &Plane<T>,
+    seeds: Minima,
+    options: WatershedOptions,
+) -> Segmentation {
+    let Minima { mut labels, minima } = seeds;
+    flood_sorted(
+        &relief.data,
+        relief.width as usize,
+        &mut labels.data,
+        options.connectivity,
+    );
+    Segmentation { labels, minima }
+}
+
+/// `(level_key, pixel)` of every pixel, sorted (ties of equal keys by pixel index).
+///
+/// A stable counting sort into about n/2 value buckets (the bucket index
+/// `⌊(v − v_min)·scale⌋` is monotone in `v` under IEEE rounding) and a small sort per bucket.
+#[inline(never)]
+fn sorted_pixels<T: Relief>(d: &[T]) -> Vec<(u64, u32)> {
+    let n = d.len();
+    let (vmin, vmax) = d
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            let v = v.to_f64();
+            (lo.min(v), hi.max(v))
+        });
+    let nb = (n / 2).clamp(1, 1 << 22);
+    let range = vmax - vmin;
+    let scale = if range.is_finite() && range > 0.0 {
+        (nb - 1) as f64 / range
+    } else {
+        0.0
+    };
+    let scale = if scale.is_finite() { scale } else { 0.0 };
+    // NaN/negative casts saturate to 0; `min` guards the top
+    let bucket = |v: f64| (((v - vmin) * scale) as usize).min(nb - 1);
+    let mut start = vec![0u32; nb + 1];
+    for v in d {
+        start[bucket(v.to_f64()) + 1] += 1;
+    }
+    for b in 0..nb {
+        start[b + 1] += start[b];
+    }
+    let mut fill = start.clone();
+    let mut out = vec![(0u64, 0u32); n];
+    for (p, v) in d.iter().enumerate() {
+        let v = v.to_f64();
+        let b = bucket(v);
+        out[fill[b] as usize] = (level_key(v), p as u32);
+        fill[b] += 1;
+    }
+    for b in 0..nb {
+        let s = &mut out[start[b] as usize..start[b + 1] as usize];
+        match s.len() {
+            0 | 1 => {}
+            2..=32 => insertion_sort(s),
+            _ => s.sort_unstable(),
+        }
+    }
+    out
+}
+
+fn insertion_sort(s: &mut [(u64, u32)]) {
+    for i in 1..s.len() {
+        let x = s[i];
+        let mut j = i;
+        while j > 0 && s[j - 1] > x {
+            s[j] = s[j - 1];
+            j -= 1;
+        }
+        s[j] = x;
+    }
+}
+
+/// The flood proper on raw data: `labels` holds the seeds on entry and every pixel's label on
+/// exit (see the module documentation for why this equals the priority-queue order).
+fn flood_sorted<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: Connectivity) {
+    let n = d.len();
+    let h = n / w;
+    let sorted = sorted_pixels(d);
+    // pixels sharing their value with another pixel (members of a tie group): only their push
+    // order matters, so only they get a sequence number
+    let mut tie = Bits::new(n);
+    for pair in sorted.windows(2) {
+        if pair[0].0 == pair[1].0 {
+            tie.set(pair[0].1 as usize);
+            tie.set(pair[1].1 as usize);
+        }
+    }
+    let mut edge = Bits::new(n);
+    for x in 0..w {
+        edge.set(x);
+        edge.set((h - 1) * w + x);
+    }
+    for y in 0..h {
+        edge.set(y * w);
+        edge.set(y * w + w - 1);
+    }
+    // push order of the static items (seeds in raster order first), stored for tie pixels only
+    // (`vec!` of zeros is lazily mapped: untouched pages cost nothing)
+    let mut seq = vec![0u32; n];
+    let mut next_seq = 0u32;
+    for (p, &l) in labels.iter().enumerate() {
+        if l != 0 {
+            if tie.get(p) {
+                seq[p] = next_seq;
+            }
+            next_seq += 1;
+        }
+    }
+    let offs = connectivity.offsets();
+    let lin: Vec<isize> = offs
+        .iter()
+        .map(|&(dx, dy)| dy as isize * w as isize + dx as isize)
+        .collect();
+    let mut st = FloodState {
+        d,
+        w,
+        h,
+        labels,
+        seq: &mut seq,
+        next_seq,
+        fifo: Vec::new(),
+        offs,
+        lin: &lin,
+        tie: &tie,
+        edge: &edge,
+    };
+    let mut group: Vec<(u32, u32)> = Vec::new();
+    let mut i = 0;
+    while i < n {
+        let (lkey, p0) = sorted[i];
+        let mut j = i + 1;
+        while j < n && sorted[j].0 == lkey {
+            j += 1;
+        }
+        if j == i + 1 {
+            if st.labels[p0 as usize] != 0 {
+                st.expand(p0 as usize, lkey);
+            }
+        } else {
+            group.clear();
+            group.extend(
+                sorted[i..j]
+                    .iter()
+                    .filter(|&&(_, p)| st.labels[p as usize] != 0)
+                    .map(|&(_, p)| (st.seq[p as usize], p)),
+            );
+            group.sort_unstable();
+            for &(_, p) in &group {
+                st.expand(p as usize, lkey);
+            }
+        }
+        let mut head = 0;
+        while head < st.fifo.len() {
+            let p = st.fifo[head];
+            head += 1;
+            st.expand(p as usize, lkey);
+        }
+        st.fifo.clear();
+        i = j;
+    }
+}
+
+struct FloodState<'a, T> {
+    d: &'a [T],
+    w: usize,
+    h: usize,
+    labels: &'a mut [u32],
+    seq: &'a mut [u32],
+    next_seq: u32,
+    fifo: Vec<u32>,
+    offs: &'static [(i32, i32)],
+    lin: &'a [isize],
+    tie: &'a Bits,
+    edge: &'a Bits,
+}
+
+/// A fixed-size bit set over pixel indices.
+struct Bits(Vec<u64>);
+
+impl Bits {
+    fn new(n: usize) -> Self {
+        Self(vec![0; n.div_ceil(64)])
+    }
+    #[inline]
+    fn set(&mut self, i: usize) {
+        self.0[i >> 6] |= 1 << (i & 63);
+    }
+    #[inline]
+    fn get(&self, i: usize) -> bool {
+        self.0[i >> 6] >> (i & 63) & 1 == 1
+    }
+}
+
+impl<T: Relief> FloodState<'_, T> {
+    /// Pops `p` at level `lkey`: labels its unlabelled neighbours (static push when higher than
+    /// the level, FIFO push otherwise).
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn expand(&mut self, p: usize, lkey: u64) {
+        let lab = self.labels[p];
+        if self.edge.get(p) {
+            let (w, h) = (self.w, self.h);
+            let (x, y) = (p % w, p / w);
+            for &(dx, dy) in self.offs {
+                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
+                    continue;
+                }
+                self.visit(qy as usize * w + qx as usize, lab, lkey);
+            }
+        } else {
+            for &o in self.lin {
+                let q = p.wrapping_add_signed(o);
+                self.visit(q, lab, lkey);
+            }
+        }
+    }
+
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn visit(&mut self, q: usize, lab: u32, lkey: u64) {
+        if self.labels[q] == 0 {
+            self.labels[q] = lab;
+            if level_key(self.d[q].to_f64()) > lkey {
+                if self.tie.get(q) {
+                    self.seq[q] = self.next_seq;
+                }
+                self.next_seq += 1;
+            } else {
+                self.fifo.push(q as u32);
+            }
+        }
+    }
 }
 
 /// Regional minima of `relief` followed by [`flood`] from them.
@@ -234,9 +371,194 @@ pub fn boundary_mask(labels: &Plane<u32>) -> Plane<bool> {
     })
 }
 
+/// The previous implementation (hierarchical bucket queue in front of a binary heap on
+/// `(level, seq)`), kept as the reference the presorted flood must reproduce exactly.
+#[cfg(test)]
+pub(crate) mod reference {
+    use super::WatershedOptions;
+    use super::{key_level, level_key};
+    use crate::VisionError;
+    use crate::minima::{Minima, Relief, check_relief};
+    use quarry_core::{Plane, Segmentation};
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+
+    type Item = Reverse<(u64, u64, u32)>;
+
+    /// A monotone priority queue over `(level, seq)` for the flood: a hierarchical queue of about
+    /// n/64 coarse buckets (the level range split evenly) in front of an exact binary heap that
+    /// holds only the current bucket. Flood levels never decrease, so the current bucket index only
+    /// grows; items of later buckets wait in plain vectors. Pop order equals that of one binary heap
+    /// on `(level.total_cmp, seq)` (tested), at O(1) per push and O(log m) per pop with m items per
+    /// bucket.
+    pub(crate) struct BucketQueue {
+        vmin: f64,
+        scale: f64,
+        buckets: Vec<Vec<Item>>,
+        cur: usize,
+        heap: BinaryHeap<Item>,
+        seq: u64,
+    }
+
+    impl BucketQueue {
+        pub(crate) fn new(vmin: f64, vmax: f64, n: usize) -> Self {
+            // few enough bucket headers to stay cache-resident, ~64 items per bucket on average
+            let nb = (n / 64).clamp(1, 1 << 16);
+            let range = vmax - vmin;
+            let scale = if range.is_finite() && range > 0.0 {
+                (nb - 1) as f64 / range
+            } else {
+                0.0
+            };
+            Self {
+                vmin,
+                scale: if scale.is_finite() { scale } else { 0.0 },
+                buckets: (0..nb).map(|_| Vec::new()).collect(),
+                cur: 0,
+                heap: BinaryHeap::new(),
+                seq: 0,
+            }
+        }
+
+        /// Pushes `v` at `level` (`key = level_key(level)`); `level` must not be below the last
+        /// popped level.
+        #[inline]
+        pub(crate) fn push(&mut self, level: f64, key: u64, v: u32) {
+            let seq = self.seq;
+            self.seq += 1;
+            // monotone in `level` (IEEE subtraction and scaling are monotone); NaN casts to 0
+            let idx = (((level - self.vmin) * self.scale) as usize).min(self.buckets.len() - 1);
+            if idx <= self.cur {
+                self.heap.push(Reverse((key, seq, v)));
+            } else {
+                self.buckets[idx].push(Reverse((key, seq, v)));
+            }
+        }
+
+        /// Pops the least `(level, seq)`: returns `(level key, value)`.
+        #[inline]
+        pub(crate) fn pop(&mut self) -> Option<(u64, u32)> {
+            loop {
+                if let Some(Reverse((k, _, v))) = self.heap.pop() {
+                    return Some((k, v));
+                }
+                // move on to the next non-empty bucket
+                loop {
+                    self.cur += 1;
+                    if self.cur >= self.buckets.len() {
+                        return None;
+                    }
+                    if !self.buckets[self.cur].is_empty() {
+                        break;
+                    }
+                }
+                let items = std::mem::take(&mut self.buckets[self.cur]);
+                let old = std::mem::replace(&mut self.heap, BinaryHeap::from(items));
+                // keep the drained heap's allocation for a later bucket
+                let mut spare = old.into_vec();
+                spare.clear();
+                if let Some(next) = self.buckets.get_mut(self.cur + 1)
+                    && next.capacity() < spare.capacity()
+                {
+                    spare.append(next);
+                    *next = spare;
+                }
+            }
+        }
+    }
+
+    /// Floods `relief` from `seeds` (Algorithm WS of spec 004 §2.5). `seeds.labels` gives the seed
+    /// label of each seed pixel (0 elsewhere) and `seeds.minima` the seed records, copied into the
+    /// result.
+    ///
+    /// Errors: empty relief, NaN/infinite values, size mismatch between relief and seeds, seed
+    /// labels outside 1..=K, no seed at all.
+    pub(crate) fn flood_reference<T: Relief>(
+        relief: &Plane<T>,
+        seeds: &Minima,
+        options: WatershedOptions,
+    ) -> Result<Segmentation, VisionError> {
+        check_relief(relief, "watershed")?;
+        if relief.dimensions() != seeds.labels.dimensions() {
+            return Err(VisionError::SizeMismatch {
+                what: "watershed relief vs seeds",
+                a: relief.dimensions(),
+                b: seeds.labels.dimensions(),
+            });
+        }
+        let k = seeds.minima.len() as u32;
+        if k == 0 {
+            return Err(quarry_core::CoreError::Empty {
+                what: "watershed seeds",
+            }
+            .into());
+        }
+        if let Some(&bad) = seeds.labels.data.iter().find(|&&l| l > k) {
+            return Err(quarry_core::CoreError::invalid(
+                "seed label",
+                format!("{bad} is not in 0..={k}"),
+            )
+            .into());
+        }
+        let (w, h) = (relief.width as usize, relief.height as usize);
+        let d = &relief.data;
+        let mut labels = seeds.labels.data.clone();
+        // Seeds are pushed in raster order (the FIFO tie rule then serves equal seeds in raster
+        // order).
+        let (vmin, vmax) = d
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                let v = v.to_f64();
+                (lo.min(v), hi.max(v))
+            });
+        let mut heap = BucketQueue::new(vmin, vmax, d.len());
+        for (p, &l) in labels.iter().enumerate() {
+            if l != 0 {
+                let v = d[p].to_f64();
+                heap.push(v, level_key(v), p as u32);
+            }
+        }
+        let offs = options.connectivity.offsets();
+        while let Some((level, p)) = heap.pop() {
+            let p = p as usize;
+            let lab = labels[p];
+            let (x, y) = (p % w, p / w);
+            let interior = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+            for &(dx, dy) in offs {
+                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                if !interior && (qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize) {
+                    continue;
+                }
+                let q = qy as usize * w + qx as usize;
+                if labels[q] == 0 {
+                    labels[q] = lab;
+                    let vq = d[q].to_f64();
+                    let kq = level_key(vq);
+                    if kq > level {
+                        heap.push(vq, kq, q as u32);
+                    } else {
+                        heap.push(key_level(level), level, q as u32);
+                    }
+                }
+            }
+        }
+        Ok(Segmentation {
+            labels: Plane {
+                width: relief.width,
+                height: relief.height,
+                data: labels,
+            },
+            minima: seeds.minima.clone(),
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use reference::BucketQueue;
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
 
     #[test]
     fn level_key_is_monotone() {
@@ -281,6 +603,53 @@ mod tests {
         assert!(popped > 5000);
         for v in [-3.5, -0.0, 0.0, 1e-300, 2.0, 253.01] {
             assert_eq!(key_level(level_key(v)).to_bits(), f64::to_bits(v));
+        }
+    }
+
+    /// The presorted flood reproduces the priority-queue flood exactly: random reliefs with few
+    /// distinct values (large plateaus and many equal levels), both connectivities, seeds from
+    /// the regional minima and arbitrary seeds (which make the flood descend into the FIFO).
+    #[test]
+    fn presorted_flood_equals_priority_queue_flood() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(11);
+        for case in 0..300u32 {
+            let w = 1 + rng.next_u32() % 23;
+            let h = 1 + rng.next_u32() % 17;
+            let levels = 1 + rng.next_u32() % (if case % 3 == 0 { 3 } else { 40 });
+            let relief =
+                Plane::from_fn(w, h, |_, _| f64::from(rng.next_u32() % levels) * 0.25 - 2.0);
+            for conn in [Connectivity::Four, Connectivity::Eight] {
+                let opts = WatershedOptions { connectivity: conn };
+                let minima = regional_minima(&relief, conn).unwrap();
+                let a = flood(&relief, &minima, opts).unwrap();
+                let b = reference::flood_reference(&relief, &minima, opts).unwrap();
+                assert_eq!(a, b, "case {case} minima seeds {w}x{h} {conn:?}");
+                // arbitrary seeds: a few random pixels with random labels
+                let k = 1 + rng.next_u32() % 5;
+                let mut labels = Plane::new(w, h, 0u32);
+                for id in 1..=k {
+                    let (x, y) = (rng.next_u32() % w, rng.next_u32() % h);
+                    labels.set(x, y, id);
+                }
+                let seeds = Minima {
+                    labels,
+                    minima: minima
+                        .minima
+                        .iter()
+                        .copied()
+                        .cycle()
+                        .take(k as usize)
+                        .collect(),
+                };
+                let a = flood(&relief, &seeds, opts).unwrap();
+                let b = reference::flood_reference(&relief, &seeds, opts).unwrap();
+                assert_eq!(a, b, "case {case} random seeds {w}x{h} {conn:?}");
+                let r32 = relief.map(|&v| v as f32);
+                let a = flood(&r32, &seeds, opts).unwrap();
+                let b = reference::flood_reference(&r32, &seeds, opts).unwrap();
+                assert_eq!(a, b, "case {case} f32 {w}x{h} {conn:?}");
+            }
         }
     }
 
