@@ -42,6 +42,8 @@ use serde::{Deserialize, Serialize};
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 
+mod fast;
+
 /// A SIFT descriptor: 4×4 cells × 8 orientation bins, element `(row·4 + col)·8 + bin`
 /// (OpenCV's layout), L2 norm ≈ 512.
 pub type SiftDescriptor = [u8; 128];
@@ -443,10 +445,10 @@ fn downsample2(src: &Plane<f32>) -> Plane<f32> {
     }
 }
 
-/// Gaussian blur of the scale space: [`crate::blur::gaussian_blur_f32`] (OpenCV's kernel size
-/// rule, reflect-101; row-parallel and bit-identical for any thread count with `parallel`).
+/// Gaussian blur of the scale space: bit-identical to [`crate::blur::gaussian_blur_f32`]
+/// (OpenCV's kernel size rule, reflect-101), laid out for speed in [`fast`].
 fn blur(src: &Plane<f32>, sigma: f64) -> Result<Plane<f32>, VisionError> {
-    crate::blur::gaussian_blur_f32(src, sigma)
+    Ok(fast::blur(src, &fast::half_kernel(sigma)?))
 }
 
 fn sub_planes(a: &Plane<f32>, b: &Plane<f32>) -> Plane<f32> {
@@ -480,6 +482,10 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
         *si = (total * total - prev * prev).sqrt();
     }
 
+    let kernels = sig[1..]
+        .iter()
+        .map(|&si| fast::half_kernel(si))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut octaves: Vec<Octave> = Vec::with_capacity(n_oct);
     let mut next_base = Some(base);
     for _ in 0..n_oct {
@@ -495,8 +501,8 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
         }
         let mut gauss = Vec::with_capacity(s + 3);
         gauss.push(g0);
-        for &si in &sig[1..] {
-            let next = blur(&gauss[gauss.len() - 1], si)?;
+        for k in &kernels {
+            let next = fast::blur(&gauss[gauss.len() - 1], k);
             gauss.push(next);
         }
         let dog_of = |i: usize| sub_planes(&gauss[i + 1], &gauss[i]);
