@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 use rayon::prelude::*;
 
 mod fast;
+use fast::{isa, multiversion};
 
 /// A SIFT descriptor: 4×4 cells × 8 orientation bins, element `(row·4 + col)·8 + bin`
 /// (OpenCV's layout), L2 norm ≈ 512.
@@ -287,16 +288,25 @@ impl Sift {
         for kp in kps {
             jobs.push(descriptor_job(ss, kp)?);
         }
-        let run = |&(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
+        let level = isa();
+        let run = |sc: &mut DescScratch,
+                   &(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
             let img = &ss.octaves[o].gauss[layer];
-            let mut v = raw_descriptor(img, x, y, ori, scl);
+            let mut v = raw_descriptor(level, img, x, y, ori, scl, sc);
             normalize_descriptor(&mut v);
             v
         };
         #[cfg(feature = "parallel")]
-        let out = jobs.par_iter().with_min_len(16).map(run).collect();
+        let out = jobs
+            .par_iter()
+            .with_min_len(16)
+            .map_init(DescScratch::default, run)
+            .collect();
         #[cfg(not(feature = "parallel"))]
-        let out = jobs.iter().map(run).collect();
+        let out = {
+            let mut sc = DescScratch::default();
+            jobs.iter().map(|j| run(&mut sc, j)).collect()
+        };
         Ok(out)
     }
 
@@ -978,8 +988,10 @@ fn descriptor_job(ss: &ScaleSpace, kp: &Keypoint) -> Result<DescriptorJob, Visio
     ))
 }
 
-/// Gathered descriptor samples (structure of arrays).
-struct Samples {
+/// Per-worker scratch of the descriptor: gathered samples (structure of arrays), flushed into
+/// the histogram in chunks so that memory stays bounded for any keypoint size.
+#[derive(Default)]
+struct DescScratch {
     dx: Vec<f32>,
     dy: Vec<f32>,
     rbin: Vec<f32>,
@@ -987,14 +999,25 @@ struct Samples {
     w: Vec<f32>,
 }
 
-impl Samples {
-    fn with_capacity(n: usize) -> Self {
-        Self {
-            dx: Vec::with_capacity(n),
-            dy: Vec::with_capacity(n),
-            rbin: Vec::with_capacity(n),
-            cbin: Vec::with_capacity(n),
-            w: Vec::with_capacity(n),
+/// Samples gathered before they are accumulated (the order of accumulation is the gathering
+/// order, so chunking does not change the sums).
+const DESC_CHUNK: usize = 1024;
+
+/// Samples whose trilinear weights are computed together (vectorised) before being scattered.
+const DESC_BLOCK: usize = 16;
+
+impl DescScratch {
+    fn ensure(&mut self, n: usize) {
+        for v in [
+            &mut self.dx,
+            &mut self.dy,
+            &mut self.rbin,
+            &mut self.cbin,
+            &mut self.w,
+        ] {
+            if v.len() < n {
+                v.resize(n, 0.0);
+            }
         }
     }
 }
@@ -1021,12 +1044,23 @@ pub(crate) fn fast_exp(x: f32) -> f32 {
 }
 
 /// The raw 128-bin histogram (OpenCV's `calcSIFTDescriptor` before normalisation).
-fn raw_descriptor(
+///
+/// The samples of one window row that pass OpenCV's per-sample test
+/// (`-1 < rbin < d`, `-1 < cbin < d`, inside the image without its outer pixel ring) form one
+/// contiguous run of columns: `rbin` and `cbin` are monotone in the column (IEEE rounding of a
+/// product with a fixed factor and of a sum with a fixed term are monotone), so each test holds
+/// on an interval. The run's ends are found with the per-sample test itself, and the run is
+/// processed with whole-slice loops that vectorise; the samples, their values and the order in
+/// which they are accumulated are exactly OpenCV's (and the previous scalar loop's).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn raw_descriptor_body(
     img: &Plane<f32>,
     ptx: f32,
     pty: f32,
     ori: f32,
     scl: f32,
+    sc: &mut DescScratch,
 ) -> [f32; DESCRIPTOR_LEN] {
     const D: usize = DESCR_WIDTH;
     const N: usize = DESCR_HIST_BINS;
@@ -1048,87 +1082,75 @@ fn raw_descriptor(
     let mut hist = [0f32; (D + 2) * (D + 2) * (N + 2)];
     let data = &img.data;
     let half = D as f32 / 2.0 - 0.5;
-    // Pass 1 gathers the samples inside the rotated window, pass 2 evaluates exp, atan2 and
-    // the magnitude over whole arrays (vectorisable), pass 3 accumulates (OpenCV's structure).
-    let side = (2 * radius + 1) as usize;
-    let mut s = Samples::with_capacity(side * side);
+    // Columns j of the window inside the image without its outer ring: 0 < px + j < cols − 1.
+    let jmin = (-radius).max(1 - px);
+    let jmax = radius.min(cols - 2 - px);
+    let run_max = (jmax - jmin + 1).max(0) as usize;
+    sc.ensure(DESC_CHUNK + run_max + DESC_BLOCK);
+    let mut n = 0usize;
     for i in -radius..=radius {
         let r = py + i;
-        if r <= 0 || r >= rows - 1 {
+        if r <= 0 || r >= rows - 1 || jmin > jmax {
             continue;
         }
         let fi = i as f32;
-        let row = (r * cols) as usize;
-        for j in -radius..=radius {
-            let c = px + j;
-            if c <= 0 || c >= cols - 1 {
-                continue;
-            }
+        let inside = |j: i32| -> bool {
             let fj = j as f32;
             let c_rot = fj * cos_t - fi * sin_t;
             let r_rot = fj * sin_t + fi * cos_t;
             let rbin = r_rot + half;
             let cbin = c_rot + half;
-            if !(rbin > -1.0 && rbin < D as f32 && cbin > -1.0 && cbin < D as f32) {
-                continue;
-            }
-            let idx = row + c as usize;
-            s.dx.push(data[idx + 1] - data[idx - 1]);
-            s.dy.push(data[idx - cols as usize] - data[idx + cols as usize]);
-            s.rbin.push(rbin);
-            s.cbin.push(cbin);
-            s.w.push((c_rot * c_rot + r_rot * r_rot) * exp_scale);
+            rbin > -1.0 && rbin < D as f32 && cbin > -1.0 && cbin < D as f32
+        };
+        let mut lo = jmin;
+        while lo <= jmax && !inside(lo) {
+            lo += 1;
+        }
+        if lo > jmax {
+            continue;
+        }
+        let mut hi = jmax;
+        while !inside(hi) {
+            hi -= 1;
+        }
+        let len = (hi - lo + 1) as usize;
+        let row = (r * cols) as usize;
+        let c0 = (px + lo) as usize;
+        let cu = cols as usize;
+        let mid = &data[row + c0..row + c0 + len];
+        let left = &data[row + c0 - 1..row + c0 - 1 + len];
+        let right = &data[row + c0 + 1..row + c0 + 1 + len];
+        let up = &data[row + c0 - cu..row + c0 - cu + len];
+        let down = &data[row + c0 + cu..row + c0 + cu + len];
+        let _ = mid;
+        for ((o, &a), &b) in sc.dx[n..n + len].iter_mut().zip(right).zip(left) {
+            *o = a - b;
+        }
+        for ((o, &a), &b) in sc.dy[n..n + len].iter_mut().zip(up).zip(down) {
+            *o = a - b;
+        }
+        let fisin = fi * sin_t;
+        let ficos = fi * cos_t;
+        for (k, ((rb, cb), wt)) in sc.rbin[n..n + len]
+            .iter_mut()
+            .zip(&mut sc.cbin[n..n + len])
+            .zip(&mut sc.w[n..n + len])
+            .enumerate()
+        {
+            let fj = (lo + k as i32) as f32;
+            let c_rot = fj * cos_t - fisin;
+            let r_rot = fj * sin_t + ficos;
+            *rb = r_rot + half;
+            *cb = c_rot + half;
+            *wt = (c_rot * c_rot + r_rot * r_rot) * exp_scale;
+        }
+        n += len;
+        if n >= DESC_CHUNK {
+            accumulate_descriptor(sc, n, ori, bins_per_rad, &mut hist);
+            n = 0;
         }
     }
-    let n = s.dx.len();
-    let mut ori_v = vec![0f32; n];
-    let mut mag_v = vec![0f32; n];
-    for k in 0..n {
-        let (dx, dy) = (s.dx[k], s.dy[k]);
-        ori_v[k] = fast_atan2(dy, dx);
-        mag_v[k] = (dx * dx + dy * dy).sqrt() * fast_exp(s.w[k]);
-    }
-    for k in 0..n {
-        let (rbin, cbin) = (s.rbin[k], s.cbin[k]);
-        let mag = mag_v[k];
-        let obin = (ori_v[k] - ori) * bins_per_rad;
-        let r0 = floor_small(rbin);
-        let c0 = floor_small(cbin);
-        let o0f = floor_small(obin);
-        let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
-        let (r0, c0) = (r0 as i32, c0 as i32);
-        let mut o0 = o0f as i32;
-        if o0 < 0 {
-            o0 += N as i32;
-        }
-        if o0 >= N as i32 {
-            o0 -= N as i32;
-        }
-        let v_r1 = mag * rf;
-        let v_r0 = mag - v_r1;
-        let v_rc11 = v_r1 * cf;
-        let v_rc10 = v_r1 - v_rc11;
-        let v_rc01 = v_r0 * cf;
-        let v_rc00 = v_r0 - v_rc01;
-        let v_rco111 = v_rc11 * of;
-        let v_rco110 = v_rc11 - v_rco111;
-        let v_rco101 = v_rc10 * of;
-        let v_rco100 = v_rc10 - v_rco101;
-        let v_rco011 = v_rc01 * of;
-        let v_rco010 = v_rc01 - v_rco011;
-        let v_rco001 = v_rc00 * of;
-        let v_rco000 = v_rc00 - v_rco001;
-        let idx = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
-        let rs = (D + 2) * (N + 2);
-        hist[idx] += v_rco000;
-        hist[idx + 1] += v_rco001;
-        hist[idx + N + 2] += v_rco010;
-        hist[idx + N + 3] += v_rco011;
-        hist[idx + rs] += v_rco100;
-        hist[idx + rs + 1] += v_rco101;
-        hist[idx + rs + N + 2] += v_rco110;
-        hist[idx + rs + N + 3] += v_rco111;
-    }
+    accumulate_descriptor(sc, n, ori, bins_per_rad, &mut hist);
     let mut dst = [0f32; DESCRIPTOR_LEN];
     for i in 0..D {
         for j in 0..D {
@@ -1139,6 +1161,100 @@ fn raw_descriptor(
         }
     }
     dst
+}
+
+multiversion!(fn raw_descriptor => raw_descriptor_body(
+    img: &Plane<f32>,
+    ptx: f32,
+    pty: f32,
+    ori: f32,
+    scl: f32,
+    sc: &mut DescScratch,
+) -> [f32; DESCRIPTOR_LEN]);
+
+/// Accumulates the first `n` gathered samples of `sc` into the descriptor histogram
+/// (orientation, magnitude, Gaussian weight, then OpenCV's trilinear split), in order.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn accumulate_descriptor(
+    sc: &mut DescScratch,
+    n: usize,
+    ori: f32,
+    bins_per_rad: f32,
+    hist: &mut [f32; (DESCR_WIDTH + 2) * (DESCR_WIDTH + 2) * (DESCR_HIST_BINS + 2)],
+) {
+    const D: usize = DESCR_WIDTH;
+    const N: usize = DESCR_HIST_BINS;
+    const B: usize = DESC_BLOCK;
+    // Orientation into `dx`, weighted magnitude into `dy` (in place, vectorisable).
+    for ((dx, dy), &w) in sc.dx[..n]
+        .iter_mut()
+        .zip(sc.dy[..n].iter_mut())
+        .zip(&sc.w[..n])
+    {
+        let (gx, gy) = (*dx, *dy);
+        *dx = fast_atan2(gy, gx);
+        *dy = (gx * gx + gy * gy).sqrt() * fast_exp(w);
+    }
+    let rs = (D + 2) * (N + 2);
+    let mut start = 0;
+    while start < n {
+        // Weights of a whole block of B samples (lanes past `n` hold stale values and are not
+        // scattered), then the scatter of the `m` real ones, in order.
+        let m = (n - start).min(B);
+        let mut idx = [0usize; B];
+        let mut v = [[0f32; B]; 8];
+        let (ori_v, mag_v) = (&sc.dx[start..start + B], &sc.dy[start..start + B]);
+        let (rb_v, cb_v) = (&sc.rbin[start..start + B], &sc.cbin[start..start + B]);
+        for k in 0..B {
+            let (rbin, cbin, mag) = (rb_v[k], cb_v[k], mag_v[k]);
+            let obin = (ori_v[k] - ori) * bins_per_rad;
+            let r0 = floor_small(rbin);
+            let c0 = floor_small(cbin);
+            let o0f = floor_small(obin);
+            let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
+            let (r0, c0) = (r0 as i32, c0 as i32);
+            let mut o0 = o0f as i32;
+            if o0 < 0 {
+                o0 += N as i32;
+            }
+            if o0 >= N as i32 {
+                o0 -= N as i32;
+            }
+            let v_r1 = mag * rf;
+            let v_r0 = mag - v_r1;
+            let v_rc11 = v_r1 * cf;
+            let v_rc10 = v_r1 - v_rc11;
+            let v_rc01 = v_r0 * cf;
+            let v_rc00 = v_r0 - v_rc01;
+            let v_rco111 = v_rc11 * of;
+            let v_rco101 = v_rc10 * of;
+            let v_rco011 = v_rc01 * of;
+            let v_rco001 = v_rc00 * of;
+            v[0][k] = v_rc00 - v_rco001;
+            v[1][k] = v_rco001;
+            v[2][k] = v_rc01 - v_rco011;
+            v[3][k] = v_rco011;
+            v[4][k] = v_rc10 - v_rco101;
+            v[5][k] = v_rco101;
+            v[6][k] = v_rc11 - v_rco111;
+            v[7][k] = v_rco111;
+            // Stale lanes may give a negative index; it is never used (`k >= m`).
+            idx[k] = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
+        }
+        for k in 0..m {
+            let i = idx[k];
+            hist[i] += v[0][k];
+            hist[i + 1] += v[1][k];
+            hist[i + N + 2] += v[2][k];
+            hist[i + N + 3] += v[3][k];
+            hist[i + rs] += v[4][k];
+            hist[i + rs + 1] += v[5][k];
+            hist[i + rs + N + 2] += v[6][k];
+            hist[i + rs + N + 3] += v[7][k];
+        }
+        start += m;
+    }
 }
 
 /// Clamps every element at 0.2·‖v‖₂ and renormalises to unit L2 norm (a zero vector stays

@@ -22,6 +22,39 @@ use crate::VisionError;
 use crate::blur::{Border, GaussianKernel};
 use quarry_core::Plane;
 
+/// Defines `$name(level, args..)`, which runs `$body(args..)` compiled for the best instruction
+/// set of `level` (the body must be `#[inline(always)]` so that it is compiled inside each
+/// wrapper). Without FMA contraction (Rust never fuses `a * b + c`) every build performs the
+/// same IEEE operations, so results do not depend on the CPU.
+macro_rules! multiversion {
+    ($vis:vis fn $name:ident => $body:ident ($($arg:ident : $ty:ty),* $(,)?) -> $ret:ty) => {
+        $vis fn $name(level: $crate::sift::fast::Isa, $($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx512f")]
+            fn avx512($($arg: $ty),*) -> $ret {
+                $body($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2")]
+            fn avx2($($arg: $ty),*) -> $ret {
+                $body($($arg),*)
+            }
+            match level {
+                #[cfg(target_arch = "x86_64")]
+                #[allow(unsafe_code)]
+                // SAFETY: `level` comes from `isa()`, so the CPU supports AVX-512F.
+                $crate::sift::fast::Isa::Avx512 => unsafe { avx512($($arg),*) },
+                #[cfg(target_arch = "x86_64")]
+                #[allow(unsafe_code)]
+                // SAFETY: `level` comes from `isa()`, so the CPU supports AVX2.
+                $crate::sift::fast::Isa::Avx2 => unsafe { avx2($($arg),*) },
+                $crate::sift::fast::Isa::Base => $body($($arg),*),
+            }
+        }
+    };
+}
+pub(super) use multiversion;
+
 /// Outputs accumulated together in registers.
 const LANES: usize = 32;
 
@@ -35,7 +68,7 @@ const ROWS_PER_TASK: usize = 16;
 
 /// The instruction set the loops were compiled for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Isa {
+pub(super) enum Isa {
     Base,
     #[cfg(target_arch = "x86_64")]
     Avx2,
@@ -43,7 +76,7 @@ enum Isa {
     Avx512,
 }
 
-fn isa() -> Isa {
+pub(super) fn isa() -> Isa {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx512f") {
