@@ -542,7 +542,8 @@ fn fmin(a: f32, b: f32) -> f32 {
 /// Maximum and minimum of the 3×3 block centred on each pixel of row `r` (1 ≤ r < h − 1) of a
 /// `w`-wide plane, for columns 1..w−1 (entries 0 and w−1 are left untouched). Branch-free over
 /// whole rows so it vectorises.
-#[inline]
+#[allow(clippy::inline_always)]
+#[inline(always)]
 fn block3_row(
     p: &[f32],
     w: usize,
@@ -574,46 +575,62 @@ fn block3_row(
     }
 }
 
-/// Columns of row `r` of DoG `layer` that are extrema of their 3×3×3 block (non-strict, as
-/// OpenCV: ≥ all 26 neighbours when positive, ≤ all when negative) with |D| > `thr`.
-fn scan_row_extrema(
+/// (layer, column) of the pixels of row `r` that are extrema of their 3×3×3 block in DoG
+/// layers 1..=s (non-strict, as OpenCV: ≥ all 26 neighbours when positive, ≤ all when
+/// negative) with |D| > `thr`, in (layer, column) order. `buf` holds `(2 + 2·layers)·w`
+/// scratch values (never needs zeroing: every entry read is written first).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn scan_row_all_layers_body(
     dog: &[Plane<f32>],
-    layer: usize,
     r: usize,
     w: usize,
     thr: f32,
     buf: &mut [f32],
-) -> Vec<usize> {
+) -> Vec<(usize, usize)> {
+    let nd = dog.len();
     let (vmax, rest) = buf.split_at_mut(w);
     let (vmin, rest) = rest.split_at_mut(w);
-    let (mx, rest) = rest.split_at_mut(w);
-    let (mn, rest) = rest.split_at_mut(w);
-    let (mx2, rest) = rest.split_at_mut(w);
-    let mn2 = &mut rest[..w];
-    block3_row(&dog[layer - 1].data, w, r, vmax, vmin, mx, mn);
-    block3_row(&dog[layer].data, w, r, vmax, vmin, mx2, mn2);
-    for (((a, b), c), d) in mx
-        .iter_mut()
-        .zip(mn.iter_mut())
-        .zip(mx2.iter())
-        .zip(mn2.iter())
+    let (mx_all, mn_all) = rest.split_at_mut(nd * w);
+    for (l, (mx, mn)) in mx_all
+        .chunks_exact_mut(w)
+        .zip(mn_all.chunks_exact_mut(w))
+        .enumerate()
     {
-        *a = fmax(*a, *c);
-        *b = fmin(*b, *d);
+        block3_row(&dog[l].data, w, r, vmax, vmin, mx, mn);
     }
-    block3_row(&dog[layer + 1].data, w, r, vmax, vmin, mx2, mn2);
-    let cur = &dog[layer].data[r * w..(r + 1) * w];
     let mut out = Vec::new();
-    for c in IMG_BORDER..w - IMG_BORDER {
-        let v = cur[c];
-        let hi = fmax(mx[c], mx2[c]);
-        let lo = fmin(mn[c], mn2[c]);
-        if (v > thr && v >= hi) || (v < -thr && v <= lo) {
-            out.push(c);
+    for layer in 1..nd - 1 {
+        let cur = &dog[layer].data[r * w..(r + 1) * w];
+        let (a, b, c) = (
+            &mx_all[(layer - 1) * w..layer * w],
+            &mx_all[layer * w..(layer + 1) * w],
+            &mx_all[(layer + 1) * w..(layer + 2) * w],
+        );
+        let (d, e, f) = (
+            &mn_all[(layer - 1) * w..layer * w],
+            &mn_all[layer * w..(layer + 1) * w],
+            &mn_all[(layer + 1) * w..(layer + 2) * w],
+        );
+        for col in IMG_BORDER..w - IMG_BORDER {
+            let v = cur[col];
+            let hi = fmax(fmax(a[col], b[col]), c[col]);
+            let lo = fmin(fmin(d[col], e[col]), f[col]);
+            if (v > thr && v >= hi) || (v < -thr && v <= lo) {
+                out.push((layer, col));
+            }
         }
     }
     out
 }
+
+multiversion!(fn scan_row_all_layers => scan_row_all_layers_body(
+    dog: &[Plane<f32>],
+    r: usize,
+    w: usize,
+    thr: f32,
+    buf: &mut [f32],
+) -> Vec<(usize, usize)>);
 
 /// A refined extremum.
 #[derive(Debug, Clone, Copy)]
@@ -871,29 +888,37 @@ fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
         if w <= 2 * IMG_BORDER || h <= 2 * IMG_BORDER {
             continue;
         }
+        // One pass over the rows: the 3×3 block max/min rows of every DoG layer are computed
+        // once per row and shared by the s centre layers that use them.
+        let nd = oct.dog.len();
+        let level = isa();
+        let scan_row = |buf: &mut Vec<f32>, r: usize| -> Vec<(usize, usize)> {
+            scan_row_all_layers(level, &oct.dog, r, w, thr, buf)
+        };
+        let buf_len = (2 + 2 * nd) * w;
+        #[cfg(feature = "parallel")]
+        let rows: Vec<Vec<(usize, usize)>> = (IMG_BORDER..h - IMG_BORDER)
+            .into_par_iter()
+            .with_min_len(8)
+            .map_init(|| vec![0f32; buf_len], scan_row)
+            .collect();
+        #[cfg(not(feature = "parallel"))]
+        let rows: Vec<Vec<(usize, usize)>> = {
+            let mut buf = vec![0f32; buf_len];
+            (IMG_BORDER..h - IMG_BORDER)
+                .map(|r| scan_row(&mut buf, r))
+                .collect()
+        };
+        // Candidates in (layer, row, column) order, as a layer-by-layer scan gives them.
         for layer in 1..=s {
-            // `buf`: 6 scratch rows, reused across the rows a worker scans (never needs zeroing:
-            // every entry read is written first).
-            let scan_row = |buf: &mut Vec<f32>, r: usize| -> Vec<(usize, usize, usize, usize)> {
-                scan_row_extrema(&oct.dog, layer, r, w, thr, buf)
-                    .into_iter()
-                    .map(|c| (o, layer, r, c))
-                    .collect()
-            };
-            #[cfg(feature = "parallel")]
-            let rows: Vec<Vec<_>> = (IMG_BORDER..h - IMG_BORDER)
-                .into_par_iter()
-                .with_min_len(8)
-                .map_init(|| vec![0f32; 6 * w], scan_row)
-                .collect();
-            #[cfg(not(feature = "parallel"))]
-            let rows: Vec<Vec<_>> = {
-                let mut buf = vec![0f32; 6 * w];
-                (IMG_BORDER..h - IMG_BORDER)
-                    .map(|r| scan_row(&mut buf, r))
-                    .collect()
-            };
-            cands.extend(rows.into_iter().flatten());
+            for (k, row) in rows.iter().enumerate() {
+                let r = IMG_BORDER + k;
+                cands.extend(
+                    row.iter()
+                        .filter(|&&(l, _)| l == layer)
+                        .map(|&(l, c)| (o, l, r, c)),
+                );
+            }
         }
     }
     let run = |&(o, layer, r, c): &(usize, usize, usize, usize)| -> Vec<Keypoint> {
