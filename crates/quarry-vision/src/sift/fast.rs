@@ -99,13 +99,17 @@ pub(super) fn half_kernel(sigma: f64) -> Result<Vec<f32>, VisionError> {
 
 /// Blurs `src` (finite values, at least 1×1) with the half kernel `k`; bit-identical to
 /// [`crate::blur::gaussian_blur_f32`] with the same σ.
-pub(super) fn blur(src: &Plane<f32>, k: &[f32]) -> Plane<f32> {
+/// `tmp` is scratch (grown as needed, its contents are overwritten).
+pub(super) fn blur(src: &Plane<f32>, k: &[f32], tmp: &mut Vec<f32>) -> Plane<f32> {
     let (w, h) = (src.width as usize, src.height as usize);
-    let mut tmp = vec![0f32; w * h];
+    if tmp.len() < w * h {
+        tmp.resize(w * h, 0.0);
+    }
+    let tmp = &mut tmp[..w * h];
     let mut out = vec![0f32; w * h];
     let level = isa();
-    horizontal(&src.data, &mut tmp, w, k, level);
-    vertical(&tmp, &mut out, w, h, k, level);
+    horizontal(&src.data, tmp, w, k, level);
+    vertical(tmp, &mut out, w, h, k, level);
     Plane {
         width: src.width,
         height: src.height,
@@ -233,7 +237,12 @@ fn h_body(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>)
     }
 }
 
-/// Vertical pass: rows `y0..` of the output (as many as `dst` holds) from the whole `src`.
+/// Columns processed together by the vertical pass: the `2r + 1` source rows of a strip stay
+/// in the L1 cache from one output row to the next.
+const STRIP: usize = 8 * LANES;
+
+/// Vertical pass: rows `y0..` of the output (as many as `dst` holds) from the whole `src`,
+/// strip by strip of [`STRIP`] columns.
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]) {
@@ -242,36 +251,47 @@ fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]
         let yy = Border::Reflect101.interpolate(y, h);
         &src[yy * w..(yy + 1) * w]
     };
-    // Row pairs (up, down) of every tap j = 1..=r for the current output row.
-    let mut pairs: Vec<(&[f32], &[f32])> = Vec::with_capacity(k.len());
-    for (i, d) in dst.chunks_exact_mut(w).enumerate() {
+    let n_rows = dst.len() / w;
+    // Row pairs (up, down) of every tap j = 1..=r, for every output row of the band.
+    let r = k.len() - 1;
+    let mut pairs: Vec<(&[f32], &[f32])> = Vec::with_capacity(n_rows * r);
+    let mut centres: Vec<&[f32]> = Vec::with_capacity(n_rows);
+    for i in 0..n_rows {
         let y = (y0 + i) as isize;
-        let centre = row(y);
-        pairs.clear();
-        pairs.extend((1..k.len()).map(|j| (row(y - j as isize), row(y + j as isize))));
-        let mut x = 0;
-        while x + LANES <= w {
-            let mut acc = [0f32; LANES];
-            for (a, &v) in acc.iter_mut().zip(&centre[x..x + LANES]) {
-                *a = k0 * v;
-            }
-            for (&kj, &(up, down)) in k[1..].iter().zip(&pairs) {
-                let up = &up[x..x + LANES];
-                let down = &down[x..x + LANES];
-                for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
-                    *a += kj * (u + v);
+        centres.push(row(y));
+        pairs.extend((1..=r).map(|j| (row(y - j as isize), row(y + j as isize))));
+    }
+    let mut x0 = 0;
+    while x0 < w {
+        let x1 = (x0 + STRIP).min(w);
+        for (i, d) in dst.chunks_exact_mut(w).enumerate() {
+            let centre = centres[i];
+            let pairs = &pairs[i * r..(i + 1) * r];
+            let mut x = x0;
+            while x + LANES <= x1 {
+                let mut acc = [0f32; LANES];
+                for (a, &v) in acc.iter_mut().zip(&centre[x..x + LANES]) {
+                    *a = k0 * v;
                 }
+                for (&kj, &(up, down)) in k[1..].iter().zip(pairs) {
+                    let up = &up[x..x + LANES];
+                    let down = &down[x..x + LANES];
+                    for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
+                        *a += kj * (u + v);
+                    }
+                }
+                d[x..x + LANES].copy_from_slice(&acc);
+                x += LANES;
             }
-            d[x..x + LANES].copy_from_slice(&acc);
-            x += LANES;
-        }
-        for (xx, o) in d.iter_mut().enumerate().skip(x) {
-            let mut a = k0 * centre[xx];
-            for (&kj, &(up, down)) in k[1..].iter().zip(&pairs) {
-                a += kj * (up[xx] + down[xx]);
+            for xx in x..x1 {
+                let mut a = k0 * centre[xx];
+                for (&kj, &(up, down)) in k[1..].iter().zip(pairs) {
+                    a += kj * (up[xx] + down[xx]);
+                }
+                d[xx] = a;
             }
-            *o = a;
         }
+        x0 = x1;
     }
 }
 
@@ -310,7 +330,8 @@ mod tests {
                     let same = out.iter().zip(&want.data).all(|(a, b)| a.to_bits() == b.to_bits());
                     assert!(same, "{w}x{h} sigma {sigma} {level:?}");
                 }
-                assert_eq!(blur(&img, &k).data, want.data);
+                let mut scratch = vec![f32::NAN; 7];
+                assert_eq!(blur(&img, &k, &mut scratch).data, want.data);
             }
         }
     }
