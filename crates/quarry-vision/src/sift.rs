@@ -801,7 +801,9 @@ fn refine(
 
 /// The smoothed 36-bin orientation histogram around (c, r) (OpenCV's `calcOrientationHist`);
 /// returns its maximum.
-fn orientation_hist(
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn orientation_hist_body(
     img: &Plane<f32>,
     r0: usize,
     c0: usize,
@@ -815,44 +817,62 @@ fn orientation_hist(
     let expf_scale = -1.0 / (2.0 * sigma * sigma);
     let mut raw = [0f32; ORI_HIST_BINS];
     let d = &img.data;
-    // Gather, then evaluate exp/atan2/sqrt over arrays (vectorisable), then accumulate.
-    let side = (2 * radius + 1).max(0) as usize;
-    let cap = side * side;
-    let (mut gx, mut gy, mut gw) = (
-        Vec::with_capacity(cap),
-        Vec::with_capacity(cap),
-        Vec::with_capacity(cap),
-    );
-    for i in -radius..=radius {
-        let y = r0 as i32 + i;
-        if y <= 0 || y >= h - 1 {
-            continue;
-        }
-        for j in -radius..=radius {
-            let x = c0 as i32 + j;
-            if x <= 0 || x >= w - 1 {
+    // Row by row over the window's columns inside the image without its outer ring (a
+    // contiguous run): gather, evaluate exp/atan2/sqrt over the run (vectorised), accumulate
+    // in OpenCV's order (row-major).
+    let jmin = (-radius).max(1 - c0 as i32);
+    let jmax = radius.min(w - 2 - c0 as i32);
+    if jmin <= jmax {
+        let len = (jmax - jmin + 1) as usize;
+        let mut gx = [0f32; ORI_RUN];
+        let mut gy = [0f32; ORI_RUN];
+        let mut gw = [0f32; ORI_RUN];
+        let wu = w as usize;
+        for i in -radius..=radius {
+            let y = r0 as i32 + i;
+            if y <= 0 || y >= h - 1 {
                 continue;
             }
-            let idx = (y * w + x) as usize;
-            gx.push(d[idx + 1] - d[idx - 1]);
-            gy.push(d[idx - w as usize] - d[idx + w as usize]);
-            gw.push(((i * i + j * j) as f32) * expf_scale);
+            let row0 = (y * w + c0 as i32 + jmin) as usize;
+            // Runs longer than the stack buffers are split (same order of accumulation).
+            let mut off = 0;
+            while off < len {
+                let m = (len - off).min(ORI_RUN);
+                let at = row0 + off;
+                let (right, left) = (&d[at + 1..at + 1 + m], &d[at - 1..at - 1 + m]);
+                let (up, down) = (&d[at - wu..at - wu + m], &d[at + wu..at + wu + m]);
+                for (((o, &a), &b), (p, (&u, &v))) in gx[..m]
+                    .iter_mut()
+                    .zip(right)
+                    .zip(left)
+                    .zip(gy[..m].iter_mut().zip(up.iter().zip(down)))
+                {
+                    *o = a - b;
+                    *p = u - v;
+                }
+                let j0 = jmin + off as i32;
+                for (k, g) in gw[..m].iter_mut().enumerate() {
+                    let j = j0 + k as i32;
+                    *g = ((i * i + j * j) as f32) * expf_scale;
+                }
+                for ((wgt, dx), &dy) in gw[..m].iter_mut().zip(gx[..m].iter_mut()).zip(&gy[..m]) {
+                    let gdx = *dx;
+                    *dx = fast_atan2(dy, gdx) * (n as f32 / 360.0);
+                    *wgt = fast_exp(*wgt) * (gdx * gdx + dy * dy).sqrt();
+                }
+                for (&o, &m) in gx[..m].iter().zip(&gw[..m]) {
+                    let mut bin = cv_round(o);
+                    if bin >= n as i32 {
+                        bin -= n as i32;
+                    }
+                    if bin < 0 {
+                        bin += n as i32;
+                    }
+                    raw[bin as usize] += m;
+                }
+                off += m;
+            }
         }
-    }
-    let mut ori = vec![0f32; gx.len()];
-    for (((o, wgt), &dx), &dy) in ori.iter_mut().zip(gw.iter_mut()).zip(&gx).zip(&gy) {
-        *o = fast_atan2(dy, dx) * (n as f32 / 360.0);
-        *wgt = fast_exp(*wgt) * (dx * dx + dy * dy).sqrt();
-    }
-    for (&o, &m) in ori.iter().zip(&gw) {
-        let mut bin = cv_round(o);
-        if bin >= n as i32 {
-            bin -= n as i32;
-        }
-        if bin < 0 {
-            bin += n as i32;
-        }
-        raw[bin as usize] += m;
     }
     let mut maxval = 0f32;
     for i in 0..n {
@@ -866,6 +886,18 @@ fn orientation_hist(
     maxval
 }
 
+/// Longest run of window columns processed at once by the orientation histogram.
+const ORI_RUN: usize = 128;
+
+multiversion!(fn orientation_hist => orientation_hist_body(
+    img: &Plane<f32>,
+    r0: usize,
+    c0: usize,
+    radius: i32,
+    sigma: f32,
+    hist: &mut [f32; ORI_HIST_BINS],
+) -> f32);
+
 /// The keypoints (one per orientation peak) of a refined extremum.
 fn orient(ss: &ScaleSpace, rf: &Refined, out: &mut Vec<Keypoint>) {
     let n = ORI_HIST_BINS;
@@ -874,6 +906,7 @@ fn orient(ss: &ScaleSpace, rf: &Refined, out: &mut Vec<Keypoint>) {
     let scl_octv = rf.kp.sigma * 2f32.powi(-(rf.kp.octave));
     let mut hist = [0f32; ORI_HIST_BINS];
     let omax = orientation_hist(
+        isa(),
         img,
         rf.r,
         rf.c,
