@@ -199,40 +199,61 @@ fn v_avx2(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]
 }
 
 /// Horizontal pass over whole rows of `src` into `dst` (same length, a multiple of `w`).
+/// Interior pixels (whose taps all fall inside the row) read the row directly; the at most
+/// `r` pixels at each end read a small padded copy of the row's end.
 // Inlined into the ISA wrappers so that the loops are compiled for each ISA there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn h_body(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
     let r = k.len() - 1;
     let k0 = k[0];
+    // Output ranges: [0, a) left edge, [a, c) interior, [c, w) right edge.
+    let a = r.min(w);
+    let c = w.saturating_sub(r).max(a);
     for (s, d) in src.chunks_exact(w).zip(dst.chunks_exact_mut(w)) {
-        pad.clear();
-        pad.extend((0..r).map(|i| s[Border::Reflect101.interpolate(i as isize - r as isize, w)]));
-        pad.extend_from_slice(s);
-        pad.extend((0..r).map(|i| s[Border::Reflect101.interpolate((w + i) as isize, w)]));
-        let mut x = 0;
-        while x + LANES <= w {
+        // Interior: out[x] uses s[x − r ..= x + r].
+        let mut x = a;
+        while x + LANES <= c {
             let mut acc = [0f32; LANES];
-            let c = &pad[x + r..x + r + LANES];
-            for (a, &v) in acc.iter_mut().zip(c) {
-                *a = k0 * v;
+            for (o, &v) in acc.iter_mut().zip(&s[x..x + LANES]) {
+                *o = k0 * v;
             }
             for (j, &kj) in k.iter().enumerate().skip(1) {
-                let left = &pad[x + r - j..x + r - j + LANES];
-                let right = &pad[x + r + j..x + r + j + LANES];
-                for ((a, &u), &v) in acc.iter_mut().zip(left).zip(right) {
-                    *a += kj * (u + v);
+                let left = &s[x - j..x - j + LANES];
+                let right = &s[x + j..x + j + LANES];
+                for ((o, &u), &v) in acc.iter_mut().zip(left).zip(right) {
+                    *o += kj * (u + v);
                 }
             }
             d[x..x + LANES].copy_from_slice(&acc);
             x += LANES;
         }
-        for (xx, o) in d.iter_mut().enumerate().skip(x) {
-            let mut a = k0 * pad[xx + r];
+        for (xx, o) in d[..c].iter_mut().enumerate().skip(x) {
+            let mut acc = k0 * s[xx];
             for (j, &kj) in k.iter().enumerate().skip(1) {
-                a += kj * (pad[xx + r - j] + pad[xx + r + j]);
+                acc += kj * (s[xx - j] + s[xx + j]);
             }
-            *o = a;
+            *o = acc;
+        }
+        // Edges through a padded copy: pad[q] = s[border(lo + q)].
+        for (lo_x, hi_x) in [(0, a), (c, w)] {
+            if lo_x == hi_x {
+                continue;
+            }
+            let lo = lo_x as isize - r as isize;
+            pad.clear();
+            pad.extend(
+                (0..hi_x - lo_x + 2 * r)
+                    .map(|q| s[Border::Reflect101.interpolate(lo + q as isize, w)]),
+            );
+            for (q, o) in d[lo_x..hi_x].iter_mut().enumerate() {
+                let centre = q + r;
+                let mut acc = k0 * pad[centre];
+                for (j, &kj) in k.iter().enumerate().skip(1) {
+                    acc += kj * (pad[centre - j] + pad[centre + j]);
+                }
+                *o = acc;
+            }
         }
     }
 }
