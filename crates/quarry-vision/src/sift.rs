@@ -53,7 +53,7 @@ pub type SiftDescriptor = [u8; 128];
 pub const DESCRIPTOR_LEN: usize = 128;
 
 /// Largest accepted image, in pixels (16 Mpx, e.g. 4096×4096). With the up-sampled first
-/// octave the scale space takes about 240 bytes per input pixel (about 4 GB at the limit).
+/// octave the scale space takes about 150 bytes per input pixel (about 2.5 GB at the limit).
 pub const MAX_PIXELS: u64 = 1 << 24;
 
 /// Smallest accepted image side in pixels. The 5-px border ignored in every octave leaves no
@@ -134,11 +134,13 @@ pub struct Sift {
     params: SiftParams,
 }
 
-/// One octave of the scale space: `s + 3` Gaussian images and `s + 2` DoG images.
+/// One octave of the scale space: `s + 3` Gaussian images. The `s + 2` DoG images are not
+/// stored: every DoG value is computed where it is used as `G[l + 1] − G[l]` (the same single
+/// subtraction, so the values are those of stored DoG images), which saves allocating and
+/// writing 5 images per octave.
 #[derive(Debug, Clone)]
 struct Octave {
     gauss: Vec<Plane<f32>>,
-    dog: Vec<Plane<f32>>,
 }
 
 /// The Gaussian and difference-of-Gaussian pyramids of one image.
@@ -166,10 +168,12 @@ impl ScaleSpace {
         self.octaves.get(o)?.gauss.get(layer)
     }
 
-    /// DoG image `layer` (0..s+2) of `octave`: `G[layer + 1] − G[layer]`.
-    pub fn dog(&self, octave: i32, layer: usize) -> Option<&Plane<f32>> {
+    /// DoG image `layer` (0..s+2) of `octave`: `G[layer + 1] − G[layer]` (computed on request;
+    /// the scale space does not store DoG images).
+    pub fn dog(&self, octave: i32, layer: usize) -> Option<Plane<f32>> {
         let o = usize::try_from(octave - self.first_octave).ok()?;
-        self.octaves.get(o)?.dog.get(layer)
+        let g = &self.octaves.get(o)?.gauss;
+        Some(sub_planes(g.get(layer + 1)?, g.get(layer)?))
     }
 }
 
@@ -517,12 +521,7 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
             let next = fast::blur(&gauss[gauss.len() - 1], k, &mut tmp);
             gauss.push(next);
         }
-        let dog_of = |i: usize| sub_planes(&gauss[i + 1], &gauss[i]);
-        #[cfg(feature = "parallel")]
-        let dog: Vec<Plane<f32>> = (0..s + 2).into_par_iter().map(dog_of).collect();
-        #[cfg(not(feature = "parallel"))]
-        let dog: Vec<Plane<f32>> = (0..s + 2).map(dog_of).collect();
-        octaves.push(Octave { gauss, dog });
+        octaves.push(Octave { gauss });
     }
     Ok(ScaleSpace {
         octaves,
@@ -584,26 +583,36 @@ fn block3_row(
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn scan_row_all_layers_body(
-    dog: &[Plane<f32>],
+    gauss: &[Plane<f32>],
     r: usize,
     w: usize,
     thr: f32,
     buf: &mut [f32],
 ) -> Vec<(usize, usize)> {
-    let nd = dog.len();
+    let nd = gauss.len() - 1;
     let (vmax, rest) = buf.split_at_mut(w);
     let (vmin, rest) = rest.split_at_mut(w);
+    let (d3, rest) = rest.split_at_mut(3 * w);
+    let (cur_all, rest) = rest.split_at_mut(nd * w);
     let (mx_all, mn_all) = rest.split_at_mut(nd * w);
-    for (l, (mx, mn)) in mx_all
+    for (l, ((mx, mn), cur)) in mx_all
         .chunks_exact_mut(w)
         .zip(mn_all.chunks_exact_mut(w))
+        .zip(cur_all.chunks_exact_mut(w))
         .enumerate()
     {
-        block3_row(&dog[l].data, w, r, vmax, vmin, mx, mn);
+        // Rows r − 1, r, r + 1 of DoG layer l.
+        let (g0, g1) = (&gauss[l].data, &gauss[l + 1].data);
+        let span = (r - 1) * w..(r + 2) * w;
+        for ((o, &a), &b) in d3.iter_mut().zip(&g1[span.clone()]).zip(&g0[span]) {
+            *o = a - b;
+        }
+        cur.copy_from_slice(&d3[w..2 * w]);
+        block3_row(d3, w, 1, vmax, vmin, mx, mn);
     }
     let mut out = Vec::new();
     for layer in 1..nd - 1 {
-        let cur = &dog[layer].data[r * w..(r + 1) * w];
+        let cur = &cur_all[layer * w..(layer + 1) * w];
         let (a, b, c) = (
             &mx_all[(layer - 1) * w..layer * w],
             &mx_all[layer * w..(layer + 1) * w],
@@ -653,7 +662,7 @@ fn scan_row_all_layers_body(
 }
 
 multiversion!(fn scan_row_all_layers => scan_row_all_layers_body(
-    dog: &[Plane<f32>],
+    gauss: &[Plane<f32>],
     r: usize,
     w: usize,
     thr: f32,
@@ -685,19 +694,18 @@ fn refine(
     const SECOND: f32 = IMG_SCALE;
     const CROSS: f32 = IMG_SCALE * 0.25;
     let s = ss.layers;
-    let dog = &ss.octaves[octave].dog;
-    let w = dog[0].width as usize;
-    let h = dog[0].height as usize;
+    let g = &ss.octaves[octave].gauss;
+    let w = g[0].width as usize;
+    let h = g[0].height as usize;
     let (mut layer, mut r, mut c) = (layer0 as i64, r0 as i64, c0 as i64);
     let (mut xi, mut xr, mut xc) = (0f32, 0f32, 0f32);
     let mut grad = [0f32; 3];
     let mut converged = false;
     for _ in 0..MAX_INTERP_STEPS {
         let (l, ri, ci) = (layer as usize, r as usize, c as usize);
-        let img = &dog[l].data;
-        let prv = &dog[l - 1].data;
-        let nxt = &dog[l + 1].data;
-        let at = |d: &[f32], y: usize, x: usize| d[y * w + x];
+        let (img, prv, nxt) = (l, l - 1, l + 1);
+        // DoG layer `d` at (y, x).
+        let at = |d: usize, y: usize, x: usize| g[d + 1].data[y * w + x] - g[d].data[y * w + x];
         grad = [
             (at(img, ri, ci + 1) - at(img, ri, ci - 1)) * DERIV,
             (at(img, ri + 1, ci) - at(img, ri - 1, ci)) * DERIV,
@@ -751,8 +759,7 @@ fn refine(
         return None;
     }
     let (l, ri, ci) = (layer as usize, r as usize, c as usize);
-    let img = &dog[l].data;
-    let at = |y: usize, x: usize| img[y * w + x];
+    let at = |y: usize, x: usize| g[l + 1].data[y * w + x] - g[l].data[y * w + x];
     let t = grad[0] * xc + grad[1] * xr + grad[2] * xi;
     let contr = at(ri, ci) * IMG_SCALE + t * 0.5;
     if contr.abs() * (s as f32) < p.contrast_threshold as f32 {
@@ -946,19 +953,19 @@ fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
     let thr = (0.5 * p.contrast_threshold / s as f64 * 255.0).floor() as f32;
     let mut cands: Vec<(usize, usize, usize, usize)> = Vec::new();
     for (o, oct) in ss.octaves.iter().enumerate() {
-        let w = oct.dog[0].width as usize;
-        let h = oct.dog[0].height as usize;
+        let w = oct.gauss[0].width as usize;
+        let h = oct.gauss[0].height as usize;
         if w <= 2 * IMG_BORDER || h <= 2 * IMG_BORDER {
             continue;
         }
         // One pass over the rows: the 3×3 block max/min rows of every DoG layer are computed
         // once per row and shared by the s centre layers that use them.
-        let nd = oct.dog.len();
+        let nd = oct.gauss.len() - 1;
         let level = isa();
         let scan_row = |buf: &mut Vec<f32>, r: usize| -> Vec<(usize, usize)> {
-            scan_row_all_layers(level, &oct.dog, r, w, thr, buf)
+            scan_row_all_layers(level, &oct.gauss, r, w, thr, buf)
         };
-        let buf_len = (2 + 2 * nd) * w;
+        let buf_len = (5 + 3 * nd) * w;
         #[cfg(feature = "parallel")]
         let rows: Vec<Vec<(usize, usize)>> = (IMG_BORDER..h - IMG_BORDER)
             .into_par_iter()
