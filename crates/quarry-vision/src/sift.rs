@@ -293,13 +293,14 @@ impl Sift {
             jobs.push(descriptor_job(ss, kp)?);
         }
         let level = isa();
-        let run = |sc: &mut DescScratch,
-                   &(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
-            let img = &ss.octaves[o].gauss[layer];
-            let mut v = raw_descriptor(level, img, x, y, ori, scl, sc);
-            normalize_descriptor(&mut v);
-            v
-        };
+        let run =
+            |sc: &mut DescScratch,
+             &(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
+                let img = &ss.octaves[o].gauss[layer];
+                let mut v = raw_descriptor(level, img, x, y, ori, scl, sc);
+                normalize_descriptor(&mut v);
+                v
+            };
         #[cfg(feature = "parallel")]
         let out = jobs
             .par_iter()
@@ -580,7 +581,8 @@ fn block3_row(
 /// layers 1..=s (non-strict, as OpenCV: ≥ all 26 neighbours when positive, ≤ all when
 /// negative) with |D| > `thr`, in (layer, column) order. `buf` holds `(2 + 2·layers)·w`
 /// scratch values (never needs zeroing: every entry read is written first).
-#[allow(clippy::inline_always)]
+// Non-lazy `&`/`|` on the comparisons keep the block test branch-free (it vectorises).
+#[allow(clippy::inline_always, clippy::needless_bitwise_bool)]
 #[inline(always)]
 fn scan_row_all_layers_body(
     gauss: &[Plane<f32>],
@@ -831,7 +833,15 @@ fn orientation_hist_body(
     let jmax = radius.min(w - 2 - c0 as i32);
     if jmin <= jmax {
         let (c, r) = (c0 as i32, r0 as i32);
-        touch_window(d, w as usize, c + jmin - 1, c + jmax + 1, r - radius - 1, r + radius + 1, h);
+        touch_window(
+            d,
+            w as usize,
+            c + jmin - 1,
+            c + jmax + 1,
+            r - radius - 1,
+            r + radius + 1,
+            h,
+        );
         let len = (jmax - jmin + 1) as usize;
         let mut gx = [0f32; ORI_RUN];
         let mut gy = [0f32; ORI_RUN];
@@ -1183,7 +1193,15 @@ fn raw_descriptor_body(
     let run_max = (jmax - jmin + 1).max(0) as usize;
     sc.ensure(DESC_CHUNK + run_max + DESC_BLOCK);
     if jmin <= jmax {
-        touch_window(data, cols as usize, px + jmin - 1, px + jmax + 1, py - radius - 1, py + radius + 1, rows);
+        touch_window(
+            data,
+            cols as usize,
+            px + jmin - 1,
+            px + jmax + 1,
+            py - radius - 1,
+            py + radius + 1,
+            rows,
+        );
     }
     let mut n = 0usize;
     for i in -radius..=radius {

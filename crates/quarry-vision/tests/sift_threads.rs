@@ -62,7 +62,11 @@ fn thread_count_does_not_change_the_result() {
         let other = run(t);
         assert_eq!(one.0.len(), other.0.len(), "{t} threads");
         // Keypoint equality is float equality: compare the bits too.
-        assert_eq!(digest(&one.0, &one.1), digest(&other.0, &other.1), "{t} threads");
+        assert_eq!(
+            digest(&one.0, &one.1),
+            digest(&other.0, &other.1),
+            "{t} threads"
+        );
         assert_eq!(one, other, "{t} threads");
     }
 }
@@ -76,7 +80,12 @@ fn output_unchanged_by_speed_work() {
     let Some(img) = photo() else { return };
     let (kps, desc) = Sift::default().extract(&img).unwrap();
     assert_eq!(kps.len(), 1463);
-    assert_eq!(digest(&kps, &desc), EXPECTED_DIGEST, "{:#018x}", digest(&kps, &desc));
+    assert_eq!(
+        digest(&kps, &desc),
+        EXPECTED_DIGEST,
+        "{:#018x}",
+        digest(&kps, &desc)
+    );
 }
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux"))]

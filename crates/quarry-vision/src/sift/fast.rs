@@ -335,7 +335,15 @@ mod tests {
             }
         }
         let mut seed = 12_345u32;
-        for &(w, h) in &[(1usize, 1usize), (3, 2), (31, 7), (32, 5), (33, 40), (97, 65), (200, 150)] {
+        for &(w, h) in &[
+            (1usize, 1usize),
+            (3, 2),
+            (31, 7),
+            (32, 5),
+            (33, 40),
+            (97, 65),
+            (200, 150),
+        ] {
             let img = Plane::from_fn(w as u32, h as u32, |_, _| {
                 seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
                 (seed >> 8) as f32 / 65_536.0
@@ -348,7 +356,10 @@ mod tests {
                     let mut out = vec![0f32; w * h];
                     horizontal(&img.data, &mut tmp, w, &k, level);
                     vertical(&tmp, &mut out, w, h, &k, level);
-                    let same = out.iter().zip(&want.data).all(|(a, b)| a.to_bits() == b.to_bits());
+                    let same = out
+                        .iter()
+                        .zip(&want.data)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
                     assert!(same, "{w}x{h} sigma {sigma} {level:?}");
                 }
                 let mut scratch = vec![f32::NAN; 7];
