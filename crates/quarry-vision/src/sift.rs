@@ -20,18 +20,25 @@
 //! # Choices (where Lowe leaves one, OpenCV's; where the spec resolves one, the spec's)
 //! - Intensities are kept in 0..255 (as OpenCV) and derivatives are scaled by 1/255 inside the
 //!   refinement, so the contrast threshold `0.04 / s` applies to intensities in [0, 1].
-//! - The scale space uses [`crate::blur::gaussian_blur_f32`] (OpenCV's kernel-size rule,
-//!   reflect-101), bilinear ×2 up-sampling with pixel-centre alignment, and decimation by taking
-//!   every second pixel.
+//! - The scale space uses the Gaussian blur of [`crate::blur::gaussian_blur_f32`] (OpenCV's
+//!   kernel-size rule, reflect-101; SIFT runs its own register-blocked build of it, bit-identical
+//!   to that function), bilinear ×2 up-sampling with pixel-centre alignment, and decimation by
+//!   taking every second pixel. DoG images are not stored: each DoG value is the subtraction
+//!   `G[l + 1] − G[l]` done where it is needed.
 //! - Keypoint coordinates follow OpenCV exactly: `x = (column + δx)·2^octave` in octave pixels
 //!   mapped to input pixels (for the up-sampled octave this is OpenCV's `KeyPoint.pt`, which
 //!   carries a 0.25 px offset with respect to pixel centres).
 //! - Gradient orientations use OpenCV's polynomial `fastAtan2` (error below 0.01°) so that
 //!   histogram bins agree with OpenCV's.
 //! - Keypoints are returned sorted by (x, y, σ, angle, response), exact duplicates removed.
-//! - Parallelism (feature `parallel`): the Gaussian blurs are row-parallel, and DoG images,
-//!   extremum scans, candidates and descriptors are processed in parallel with order-preserving
-//!   collection; results are bit-identical for any number of threads.
+//! - Parallelism (feature `parallel`): the Gaussian blurs are row-parallel, and extremum rows,
+//!   candidates and descriptors are processed in parallel with order-preserving collection;
+//!   results are bit-identical for any number of threads.
+//! - Speed (issue 6): the hot loops (blur, extremum scan, orientation and descriptor
+//!   histograms) are compiled for baseline x86-64, AVX2 and AVX-512F and chosen at run time;
+//!   without FMA contraction all builds perform the same IEEE operations, so the output does
+//!   not depend on the CPU. Histogram samples are gathered per window row as contiguous runs and
+//!   accumulated in OpenCV's order, so every sum is the one of the plain scalar loop.
 
 use crate::VisionError;
 use quarry_core::{
