@@ -427,22 +427,40 @@ fn upsample2(src: &Plane<f32>) -> Plane<f32> {
     let tx = taps(w, w2);
     let ty = taps(h, h2);
     // Horizontal pass for each source row, then vertical interpolation.
+    // Both passes are row-parallel with `parallel` (each output value is computed alone).
     let mut hrows = vec![0f32; w2 * h];
-    for y in 0..h {
+    let h_row = |(y, out): (usize, &mut [f32])| {
         let row = &src.data[y * w..(y + 1) * w];
-        let out = &mut hrows[y * w2..(y + 1) * w2];
         for (o, &(a, b, f)) in out.iter_mut().zip(&tx) {
             *o = row[a] * (1.0 - f) + row[b] * f;
         }
-    }
+    };
     let mut data = vec![0f32; w2 * h2];
-    for (y, &(a, b, f)) in ty.iter().enumerate() {
+    let v_row = |hrows: &[f32], (out, &(a, b, f)): (&mut [f32], &(usize, usize, f32))| {
         let ra = &hrows[a * w2..(a + 1) * w2];
         let rb = &hrows[b * w2..(b + 1) * w2];
-        let out = &mut data[y * w2..(y + 1) * w2];
         for ((o, &va), &vb) in out.iter_mut().zip(ra).zip(rb) {
             *o = va * (1.0 - f) + vb * f;
         }
+    };
+    #[cfg(feature = "parallel")]
+    {
+        hrows
+            .par_chunks_mut(w2)
+            .enumerate()
+            .with_min_len(16)
+            .for_each(h_row);
+        data.par_chunks_mut(w2)
+            .zip(ty.par_iter())
+            .with_min_len(16)
+            .for_each(|x| v_row(&hrows, x));
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        hrows.chunks_mut(w2).enumerate().for_each(h_row);
+        data.chunks_mut(w2)
+            .zip(ty.iter())
+            .for_each(|x| v_row(&hrows, x));
     }
     Plane {
         width: w2 as u32,
