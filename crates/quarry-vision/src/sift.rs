@@ -20,18 +20,25 @@
 //! # Choices (where Lowe leaves one, OpenCV's; where the spec resolves one, the spec's)
 //! - Intensities are kept in 0..255 (as OpenCV) and derivatives are scaled by 1/255 inside the
 //!   refinement, so the contrast threshold `0.04 / s` applies to intensities in [0, 1].
-//! - The scale space uses [`crate::blur::gaussian_blur_f32`] (OpenCV's kernel-size rule,
-//!   reflect-101), bilinear ×2 up-sampling with pixel-centre alignment, and decimation by taking
-//!   every second pixel.
+//! - The scale space uses the Gaussian blur of [`crate::blur::gaussian_blur_f32`] (OpenCV's
+//!   kernel-size rule, reflect-101; SIFT runs its own register-blocked build of it, bit-identical
+//!   to that function), bilinear ×2 up-sampling with pixel-centre alignment, and decimation by
+//!   taking every second pixel. DoG images are not stored: each DoG value is the subtraction
+//!   `G[l + 1] − G[l]` done where it is needed.
 //! - Keypoint coordinates follow OpenCV exactly: `x = (column + δx)·2^octave` in octave pixels
 //!   mapped to input pixels (for the up-sampled octave this is OpenCV's `KeyPoint.pt`, which
 //!   carries a 0.25 px offset with respect to pixel centres).
 //! - Gradient orientations use OpenCV's polynomial `fastAtan2` (error below 0.01°) so that
 //!   histogram bins agree with OpenCV's.
 //! - Keypoints are returned sorted by (x, y, σ, angle, response), exact duplicates removed.
-//! - Parallelism (feature `parallel`): the Gaussian blurs are row-parallel, and DoG images,
-//!   extremum scans, candidates and descriptors are processed in parallel with order-preserving
-//!   collection; results are bit-identical for any number of threads.
+//! - Parallelism (feature `parallel`): the Gaussian blurs are row-parallel, and extremum rows,
+//!   candidates and descriptors are processed in parallel with order-preserving collection;
+//!   results are bit-identical for any number of threads.
+//! - Speed (issue 6): the hot loops (blur, extremum scan, orientation and descriptor
+//!   histograms) are compiled for baseline x86-64, AVX2 and AVX-512F and chosen at run time;
+//!   without FMA contraction all builds perform the same IEEE operations, so the output does
+//!   not depend on the CPU. Histogram samples are gathered per window row as contiguous runs and
+//!   accumulated in OpenCV's order, so every sum is the one of the plain scalar loop.
 
 use crate::VisionError;
 use quarry_core::{
@@ -42,6 +49,9 @@ use serde::{Deserialize, Serialize};
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 
+mod fast;
+use fast::{isa, multiversion};
+
 /// A SIFT descriptor: 4×4 cells × 8 orientation bins, element `(row·4 + col)·8 + bin`
 /// (OpenCV's layout), L2 norm ≈ 512.
 pub type SiftDescriptor = [u8; 128];
@@ -50,7 +60,7 @@ pub type SiftDescriptor = [u8; 128];
 pub const DESCRIPTOR_LEN: usize = 128;
 
 /// Largest accepted image, in pixels (16 Mpx, e.g. 4096×4096). With the up-sampled first
-/// octave the scale space takes about 240 bytes per input pixel (about 4 GB at the limit).
+/// octave the scale space takes about 150 bytes per input pixel (about 2.5 GB at the limit).
 pub const MAX_PIXELS: u64 = 1 << 24;
 
 /// Smallest accepted image side in pixels. The 5-px border ignored in every octave leaves no
@@ -131,11 +141,13 @@ pub struct Sift {
     params: SiftParams,
 }
 
-/// One octave of the scale space: `s + 3` Gaussian images and `s + 2` DoG images.
+/// One octave of the scale space: `s + 3` Gaussian images. The `s + 2` DoG images are not
+/// stored: every DoG value is computed where it is used as `G[l + 1] − G[l]` (the same single
+/// subtraction, so the values are those of stored DoG images), which saves allocating and
+/// writing 5 images per octave.
 #[derive(Debug, Clone)]
 struct Octave {
     gauss: Vec<Plane<f32>>,
-    dog: Vec<Plane<f32>>,
 }
 
 /// The Gaussian and difference-of-Gaussian pyramids of one image.
@@ -163,10 +175,12 @@ impl ScaleSpace {
         self.octaves.get(o)?.gauss.get(layer)
     }
 
-    /// DoG image `layer` (0..s+2) of `octave`: `G[layer + 1] − G[layer]`.
-    pub fn dog(&self, octave: i32, layer: usize) -> Option<&Plane<f32>> {
+    /// DoG image `layer` (0..s+2) of `octave`: `G[layer + 1] − G[layer]` (computed on request;
+    /// the scale space does not store DoG images).
+    pub fn dog(&self, octave: i32, layer: usize) -> Option<Plane<f32>> {
         let o = usize::try_from(octave - self.first_octave).ok()?;
-        self.octaves.get(o)?.dog.get(layer)
+        let g = &self.octaves.get(o)?.gauss;
+        Some(sub_planes(g.get(layer + 1)?, g.get(layer)?))
     }
 }
 
@@ -285,16 +299,26 @@ impl Sift {
         for kp in kps {
             jobs.push(descriptor_job(ss, kp)?);
         }
-        let run = |&(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
-            let img = &ss.octaves[o].gauss[layer];
-            let mut v = raw_descriptor(img, x, y, ori, scl);
-            normalize_descriptor(&mut v);
-            v
-        };
+        let level = isa();
+        let run =
+            |sc: &mut DescScratch,
+             &(o, layer, x, y, ori, scl): &(usize, usize, f32, f32, f32, f32)| {
+                let img = &ss.octaves[o].gauss[layer];
+                let mut v = raw_descriptor(level, img, x, y, ori, scl, sc);
+                normalize_descriptor(&mut v);
+                v
+            };
         #[cfg(feature = "parallel")]
-        let out = jobs.par_iter().with_min_len(16).map(run).collect();
+        let out = jobs
+            .par_iter()
+            .with_min_len(16)
+            .map_init(DescScratch::default, run)
+            .collect();
         #[cfg(not(feature = "parallel"))]
-        let out = jobs.iter().map(run).collect();
+        let out = {
+            let mut sc = DescScratch::default();
+            jobs.iter().map(|j| run(&mut sc, j)).collect()
+        };
         Ok(out)
     }
 
@@ -403,22 +427,40 @@ fn upsample2(src: &Plane<f32>) -> Plane<f32> {
     let tx = taps(w, w2);
     let ty = taps(h, h2);
     // Horizontal pass for each source row, then vertical interpolation.
+    // Both passes are row-parallel with `parallel` (each output value is computed alone).
     let mut hrows = vec![0f32; w2 * h];
-    for y in 0..h {
+    let h_row = |(y, out): (usize, &mut [f32])| {
         let row = &src.data[y * w..(y + 1) * w];
-        let out = &mut hrows[y * w2..(y + 1) * w2];
         for (o, &(a, b, f)) in out.iter_mut().zip(&tx) {
             *o = row[a] * (1.0 - f) + row[b] * f;
         }
-    }
+    };
     let mut data = vec![0f32; w2 * h2];
-    for (y, &(a, b, f)) in ty.iter().enumerate() {
+    let v_row = |hrows: &[f32], (out, &(a, b, f)): (&mut [f32], &(usize, usize, f32))| {
         let ra = &hrows[a * w2..(a + 1) * w2];
         let rb = &hrows[b * w2..(b + 1) * w2];
-        let out = &mut data[y * w2..(y + 1) * w2];
         for ((o, &va), &vb) in out.iter_mut().zip(ra).zip(rb) {
             *o = va * (1.0 - f) + vb * f;
         }
+    };
+    #[cfg(feature = "parallel")]
+    {
+        hrows
+            .par_chunks_mut(w2)
+            .enumerate()
+            .with_min_len(16)
+            .for_each(h_row);
+        data.par_chunks_mut(w2)
+            .zip(ty.par_iter())
+            .with_min_len(16)
+            .for_each(|x| v_row(&hrows, x));
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        hrows.chunks_mut(w2).enumerate().for_each(h_row);
+        data.chunks_mut(w2)
+            .zip(ty.iter())
+            .for_each(|x| v_row(&hrows, x));
     }
     Plane {
         width: w2 as u32,
@@ -443,10 +485,10 @@ fn downsample2(src: &Plane<f32>) -> Plane<f32> {
     }
 }
 
-/// Gaussian blur of the scale space: [`crate::blur::gaussian_blur_f32`] (OpenCV's kernel size
-/// rule, reflect-101; row-parallel and bit-identical for any thread count with `parallel`).
-fn blur(src: &Plane<f32>, sigma: f64) -> Result<Plane<f32>, VisionError> {
-    crate::blur::gaussian_blur_f32(src, sigma)
+/// Gaussian blur of the scale space: bit-identical to [`crate::blur::gaussian_blur_f32`]
+/// (OpenCV's kernel size rule, reflect-101), laid out for speed in [`fast`].
+fn blur(src: &Plane<f32>, sigma: f64, tmp: &mut Vec<f32>) -> Result<Plane<f32>, VisionError> {
+    Ok(fast::blur(src, &fast::half_kernel(sigma)?, tmp))
 }
 
 fn sub_planes(a: &Plane<f32>, b: &Plane<f32>) -> Plane<f32> {
@@ -461,12 +503,14 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
     let s = p.n_octave_layers as usize;
     let sigma = p.sigma as f32;
     let sin = p.input_blur as f32;
+    // Scratch of the horizontal blur pass, shared by every blur of the pyramid.
+    let mut tmp = Vec::new();
     let (base, first_octave) = if p.upsample {
         let sig_diff = (sigma * sigma - sin * sin * 4.0).max(0.01).sqrt();
-        (blur(&upsample2(img), f64::from(sig_diff))?, -1)
+        (blur(&upsample2(img), f64::from(sig_diff), &mut tmp)?, -1)
     } else {
         let sig_diff = (sigma * sigma - sin * sin).max(0.01).sqrt();
-        (blur(img, f64::from(sig_diff))?, 0)
+        (blur(img, f64::from(sig_diff), &mut tmp)?, 0)
     };
     let min_side = f64::from(base.width.min(base.height));
     let n_oct = ((min_side.log2() - 2.0).round_ties_even() as i32 - first_octave).max(1) as usize;
@@ -480,6 +524,10 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
         *si = (total * total - prev * prev).sqrt();
     }
 
+    let kernels = sig[1..]
+        .iter()
+        .map(|&si| fast::half_kernel(si))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut octaves: Vec<Octave> = Vec::with_capacity(n_oct);
     let mut next_base = Some(base);
     for _ in 0..n_oct {
@@ -495,16 +543,11 @@ fn build_scale_space(img: &Plane<f32>, p: &SiftParams) -> Result<ScaleSpace, Vis
         }
         let mut gauss = Vec::with_capacity(s + 3);
         gauss.push(g0);
-        for &si in &sig[1..] {
-            let next = blur(&gauss[gauss.len() - 1], si)?;
+        for k in &kernels {
+            let next = fast::blur(&gauss[gauss.len() - 1], k, &mut tmp);
             gauss.push(next);
         }
-        let dog_of = |i: usize| sub_planes(&gauss[i + 1], &gauss[i]);
-        #[cfg(feature = "parallel")]
-        let dog: Vec<Plane<f32>> = (0..s + 2).into_par_iter().map(dog_of).collect();
-        #[cfg(not(feature = "parallel"))]
-        let dog: Vec<Plane<f32>> = (0..s + 2).map(dog_of).collect();
-        octaves.push(Octave { gauss, dog });
+        octaves.push(Octave { gauss });
     }
     Ok(ScaleSpace {
         octaves,
@@ -526,7 +569,8 @@ fn fmin(a: f32, b: f32) -> f32 {
 /// Maximum and minimum of the 3×3 block centred on each pixel of row `r` (1 ≤ r < h − 1) of a
 /// `w`-wide plane, for columns 1..w−1 (entries 0 and w−1 are left untouched). Branch-free over
 /// whole rows so it vectorises.
-#[inline]
+#[allow(clippy::inline_always)]
+#[inline(always)]
 fn block3_row(
     p: &[f32],
     w: usize,
@@ -558,46 +602,99 @@ fn block3_row(
     }
 }
 
-/// Columns of row `r` of DoG `layer` that are extrema of their 3×3×3 block (non-strict, as
-/// OpenCV: ≥ all 26 neighbours when positive, ≤ all when negative) with |D| > `thr`.
-fn scan_row_extrema(
-    dog: &[Plane<f32>],
-    layer: usize,
+/// (layer, column) of the pixels of row `r` that are extrema of their 3×3×3 block in DoG
+/// layers 1..=s (non-strict, as OpenCV: ≥ all 26 neighbours when positive, ≤ all when
+/// negative) with |D| > `thr`, in (layer, column) order. `buf` holds `(2 + 2·layers)·w`
+/// scratch values (never needs zeroing: every entry read is written first).
+// Non-lazy `&`/`|` on the comparisons keep the block test branch-free (it vectorises).
+#[allow(clippy::inline_always, clippy::needless_bitwise_bool)]
+#[inline(always)]
+fn scan_row_all_layers_body(
+    gauss: &[Plane<f32>],
     r: usize,
     w: usize,
     thr: f32,
     buf: &mut [f32],
-) -> Vec<usize> {
+) -> Vec<(usize, usize)> {
+    let nd = gauss.len() - 1;
     let (vmax, rest) = buf.split_at_mut(w);
     let (vmin, rest) = rest.split_at_mut(w);
-    let (mx, rest) = rest.split_at_mut(w);
-    let (mn, rest) = rest.split_at_mut(w);
-    let (mx2, rest) = rest.split_at_mut(w);
-    let mn2 = &mut rest[..w];
-    block3_row(&dog[layer - 1].data, w, r, vmax, vmin, mx, mn);
-    block3_row(&dog[layer].data, w, r, vmax, vmin, mx2, mn2);
-    for (((a, b), c), d) in mx
-        .iter_mut()
-        .zip(mn.iter_mut())
-        .zip(mx2.iter())
-        .zip(mn2.iter())
+    let (d3, rest) = rest.split_at_mut(3 * w);
+    let (cur_all, rest) = rest.split_at_mut(nd * w);
+    let (mx_all, mn_all) = rest.split_at_mut(nd * w);
+    for (l, ((mx, mn), cur)) in mx_all
+        .chunks_exact_mut(w)
+        .zip(mn_all.chunks_exact_mut(w))
+        .zip(cur_all.chunks_exact_mut(w))
+        .enumerate()
     {
-        *a = fmax(*a, *c);
-        *b = fmin(*b, *d);
+        // Rows r − 1, r, r + 1 of DoG layer l.
+        let (g0, g1) = (&gauss[l].data, &gauss[l + 1].data);
+        let span = (r - 1) * w..(r + 2) * w;
+        for ((o, &a), &b) in d3.iter_mut().zip(&g1[span.clone()]).zip(&g0[span]) {
+            *o = a - b;
+        }
+        cur.copy_from_slice(&d3[w..2 * w]);
+        block3_row(d3, w, 1, vmax, vmin, mx, mn);
     }
-    block3_row(&dog[layer + 1].data, w, r, vmax, vmin, mx2, mn2);
-    let cur = &dog[layer].data[r * w..(r + 1) * w];
     let mut out = Vec::new();
-    for c in IMG_BORDER..w - IMG_BORDER {
-        let v = cur[c];
-        let hi = fmax(mx[c], mx2[c]);
-        let lo = fmin(mn[c], mn2[c]);
-        if (v > thr && v >= hi) || (v < -thr && v <= lo) {
-            out.push(c);
+    for layer in 1..nd - 1 {
+        let cur = &cur_all[layer * w..(layer + 1) * w];
+        let (a, b, c) = (
+            &mx_all[(layer - 1) * w..layer * w],
+            &mx_all[layer * w..(layer + 1) * w],
+            &mx_all[(layer + 1) * w..(layer + 2) * w],
+        );
+        let (d, e, f) = (
+            &mn_all[(layer - 1) * w..layer * w],
+            &mn_all[layer * w..(layer + 1) * w],
+            &mn_all[(layer + 1) * w..(layer + 2) * w],
+        );
+        // Branch-free test over blocks of 16 columns (vectorises), then the rare hits.
+        const B: usize = 16;
+        let end = w - IMG_BORDER;
+        let mut col = IMG_BORDER;
+        while col < end {
+            let m = (end - col).min(B);
+            let mut hit = [false; B];
+            if m == B {
+                for (k, h) in hit.iter_mut().enumerate() {
+                    let i = col + k;
+                    let v = cur[i];
+                    let hi = fmax(fmax(a[i], b[i]), c[i]);
+                    let lo = fmin(fmin(d[i], e[i]), f[i]);
+                    *h = ((v > thr) & (v >= hi)) | ((v < -thr) & (v <= lo));
+                }
+            } else {
+                for (k, h) in hit.iter_mut().enumerate().take(m) {
+                    let i = col + k;
+                    let v = cur[i];
+                    let hi = fmax(fmax(a[i], b[i]), c[i]);
+                    let lo = fmin(fmin(d[i], e[i]), f[i]);
+                    *h = ((v > thr) & (v >= hi)) | ((v < -thr) & (v <= lo));
+                }
+            }
+            if hit.iter().any(|&h| h) {
+                out.extend(
+                    hit.iter()
+                        .enumerate()
+                        .filter(|&(_, &h)| h)
+                        .map(|(k, _)| (layer, col + k)),
+                );
+            }
+            col += m;
         }
     }
     out
 }
+
+multiversion!(fn scan_row_all_layers => scan_row_all_layers_body(
+    gauss: &[Plane<f32>],
+    r: usize,
+    w: usize,
+    thr: f32,
+    buf: &mut [f32],
+) -> Vec<(usize, usize)>);
 
 /// A refined extremum.
 #[derive(Debug, Clone, Copy)]
@@ -624,19 +721,18 @@ fn refine(
     const SECOND: f32 = IMG_SCALE;
     const CROSS: f32 = IMG_SCALE * 0.25;
     let s = ss.layers;
-    let dog = &ss.octaves[octave].dog;
-    let w = dog[0].width as usize;
-    let h = dog[0].height as usize;
+    let g = &ss.octaves[octave].gauss;
+    let w = g[0].width as usize;
+    let h = g[0].height as usize;
     let (mut layer, mut r, mut c) = (layer0 as i64, r0 as i64, c0 as i64);
     let (mut xi, mut xr, mut xc) = (0f32, 0f32, 0f32);
     let mut grad = [0f32; 3];
     let mut converged = false;
     for _ in 0..MAX_INTERP_STEPS {
         let (l, ri, ci) = (layer as usize, r as usize, c as usize);
-        let img = &dog[l].data;
-        let prv = &dog[l - 1].data;
-        let nxt = &dog[l + 1].data;
-        let at = |d: &[f32], y: usize, x: usize| d[y * w + x];
+        let (img, prv, nxt) = (l, l - 1, l + 1);
+        // DoG layer `d` at (y, x).
+        let at = |d: usize, y: usize, x: usize| g[d + 1].data[y * w + x] - g[d].data[y * w + x];
         grad = [
             (at(img, ri, ci + 1) - at(img, ri, ci - 1)) * DERIV,
             (at(img, ri + 1, ci) - at(img, ri - 1, ci)) * DERIV,
@@ -690,8 +786,7 @@ fn refine(
         return None;
     }
     let (l, ri, ci) = (layer as usize, r as usize, c as usize);
-    let img = &dog[l].data;
-    let at = |y: usize, x: usize| img[y * w + x];
+    let at = |y: usize, x: usize| g[l + 1].data[y * w + x] - g[l].data[y * w + x];
     let t = grad[0] * xc + grad[1] * xr + grad[2] * xi;
     let contr = at(ri, ci) * IMG_SCALE + t * 0.5;
     if contr.abs() * (s as f32) < p.contrast_threshold as f32 {
@@ -740,7 +835,9 @@ fn refine(
 
 /// The smoothed 36-bin orientation histogram around (c, r) (OpenCV's `calcOrientationHist`);
 /// returns its maximum.
-fn orientation_hist(
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn orientation_hist_body(
     img: &Plane<f32>,
     r0: usize,
     c0: usize,
@@ -754,44 +851,72 @@ fn orientation_hist(
     let expf_scale = -1.0 / (2.0 * sigma * sigma);
     let mut raw = [0f32; ORI_HIST_BINS];
     let d = &img.data;
-    // Gather, then evaluate exp/atan2/sqrt over arrays (vectorisable), then accumulate.
-    let side = (2 * radius + 1).max(0) as usize;
-    let cap = side * side;
-    let (mut gx, mut gy, mut gw) = (
-        Vec::with_capacity(cap),
-        Vec::with_capacity(cap),
-        Vec::with_capacity(cap),
-    );
-    for i in -radius..=radius {
-        let y = r0 as i32 + i;
-        if y <= 0 || y >= h - 1 {
-            continue;
-        }
-        for j in -radius..=radius {
-            let x = c0 as i32 + j;
-            if x <= 0 || x >= w - 1 {
+    // Row by row over the window's columns inside the image without its outer ring (a
+    // contiguous run): gather, evaluate exp/atan2/sqrt over the run (vectorised), accumulate
+    // in OpenCV's order (row-major).
+    let jmin = (-radius).max(1 - c0 as i32);
+    let jmax = radius.min(w - 2 - c0 as i32);
+    if jmin <= jmax {
+        let (c, r) = (c0 as i32, r0 as i32);
+        touch_window(
+            d,
+            w as usize,
+            c + jmin - 1,
+            c + jmax + 1,
+            r - radius - 1,
+            r + radius + 1,
+            h,
+        );
+        let len = (jmax - jmin + 1) as usize;
+        let mut gx = [0f32; ORI_RUN];
+        let mut gy = [0f32; ORI_RUN];
+        let mut gw = [0f32; ORI_RUN];
+        let wu = w as usize;
+        for i in -radius..=radius {
+            let y = r0 as i32 + i;
+            if y <= 0 || y >= h - 1 {
                 continue;
             }
-            let idx = (y * w + x) as usize;
-            gx.push(d[idx + 1] - d[idx - 1]);
-            gy.push(d[idx - w as usize] - d[idx + w as usize]);
-            gw.push(((i * i + j * j) as f32) * expf_scale);
+            let row0 = (y * w + c0 as i32 + jmin) as usize;
+            // Runs longer than the stack buffers are split (same order of accumulation).
+            let mut off = 0;
+            while off < len {
+                let m = (len - off).min(ORI_RUN);
+                let at = row0 + off;
+                let (right, left) = (&d[at + 1..at + 1 + m], &d[at - 1..at - 1 + m]);
+                let (up, down) = (&d[at - wu..at - wu + m], &d[at + wu..at + wu + m]);
+                for (((o, &a), &b), (p, (&u, &v))) in gx[..m]
+                    .iter_mut()
+                    .zip(right)
+                    .zip(left)
+                    .zip(gy[..m].iter_mut().zip(up.iter().zip(down)))
+                {
+                    *o = a - b;
+                    *p = u - v;
+                }
+                let j0 = jmin + off as i32;
+                for (k, g) in gw[..m].iter_mut().enumerate() {
+                    let j = j0 + k as i32;
+                    *g = ((i * i + j * j) as f32) * expf_scale;
+                }
+                for ((wgt, dx), &dy) in gw[..m].iter_mut().zip(gx[..m].iter_mut()).zip(&gy[..m]) {
+                    let gdx = *dx;
+                    *dx = fast_atan2(dy, gdx) * (n as f32 / 360.0);
+                    *wgt = fast_exp(*wgt) * (gdx * gdx + dy * dy).sqrt();
+                }
+                for (&o, &m) in gx[..m].iter().zip(&gw[..m]) {
+                    let mut bin = cv_round(o);
+                    if bin >= n as i32 {
+                        bin -= n as i32;
+                    }
+                    if bin < 0 {
+                        bin += n as i32;
+                    }
+                    raw[bin as usize] += m;
+                }
+                off += m;
+            }
         }
-    }
-    let mut ori = vec![0f32; gx.len()];
-    for (((o, wgt), &dx), &dy) in ori.iter_mut().zip(gw.iter_mut()).zip(&gx).zip(&gy) {
-        *o = fast_atan2(dy, dx) * (n as f32 / 360.0);
-        *wgt = fast_exp(*wgt) * (dx * dx + dy * dy).sqrt();
-    }
-    for (&o, &m) in ori.iter().zip(&gw) {
-        let mut bin = cv_round(o);
-        if bin >= n as i32 {
-            bin -= n as i32;
-        }
-        if bin < 0 {
-            bin += n as i32;
-        }
-        raw[bin as usize] += m;
     }
     let mut maxval = 0f32;
     for i in 0..n {
@@ -805,6 +930,18 @@ fn orientation_hist(
     maxval
 }
 
+/// Longest run of window columns processed at once by the orientation histogram.
+const ORI_RUN: usize = 128;
+
+multiversion!(fn orientation_hist => orientation_hist_body(
+    img: &Plane<f32>,
+    r0: usize,
+    c0: usize,
+    radius: i32,
+    sigma: f32,
+    hist: &mut [f32; ORI_HIST_BINS],
+) -> f32);
+
 /// The keypoints (one per orientation peak) of a refined extremum.
 fn orient(ss: &ScaleSpace, rf: &Refined, out: &mut Vec<Keypoint>) {
     let n = ORI_HIST_BINS;
@@ -813,6 +950,7 @@ fn orient(ss: &ScaleSpace, rf: &Refined, out: &mut Vec<Keypoint>) {
     let scl_octv = rf.kp.sigma * 2f32.powi(-(rf.kp.octave));
     let mut hist = [0f32; ORI_HIST_BINS];
     let omax = orientation_hist(
+        isa(),
         img,
         rf.r,
         rf.c,
@@ -850,34 +988,42 @@ fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
     let thr = (0.5 * p.contrast_threshold / s as f64 * 255.0).floor() as f32;
     let mut cands: Vec<(usize, usize, usize, usize)> = Vec::new();
     for (o, oct) in ss.octaves.iter().enumerate() {
-        let w = oct.dog[0].width as usize;
-        let h = oct.dog[0].height as usize;
+        let w = oct.gauss[0].width as usize;
+        let h = oct.gauss[0].height as usize;
         if w <= 2 * IMG_BORDER || h <= 2 * IMG_BORDER {
             continue;
         }
+        // One pass over the rows: the 3×3 block max/min rows of every DoG layer are computed
+        // once per row and shared by the s centre layers that use them.
+        let nd = oct.gauss.len() - 1;
+        let level = isa();
+        let scan_row = |buf: &mut Vec<f32>, r: usize| -> Vec<(usize, usize)> {
+            scan_row_all_layers(level, &oct.gauss, r, w, thr, buf)
+        };
+        let buf_len = (5 + 3 * nd) * w;
+        #[cfg(feature = "parallel")]
+        let rows: Vec<Vec<(usize, usize)>> = (IMG_BORDER..h - IMG_BORDER)
+            .into_par_iter()
+            .with_min_len(8)
+            .map_init(|| vec![0f32; buf_len], scan_row)
+            .collect();
+        #[cfg(not(feature = "parallel"))]
+        let rows: Vec<Vec<(usize, usize)>> = {
+            let mut buf = vec![0f32; buf_len];
+            (IMG_BORDER..h - IMG_BORDER)
+                .map(|r| scan_row(&mut buf, r))
+                .collect()
+        };
+        // Candidates in (layer, row, column) order, as a layer-by-layer scan gives them.
         for layer in 1..=s {
-            // `buf`: 6 scratch rows, reused across the rows a worker scans (never needs zeroing:
-            // every entry read is written first).
-            let scan_row = |buf: &mut Vec<f32>, r: usize| -> Vec<(usize, usize, usize, usize)> {
-                scan_row_extrema(&oct.dog, layer, r, w, thr, buf)
-                    .into_iter()
-                    .map(|c| (o, layer, r, c))
-                    .collect()
-            };
-            #[cfg(feature = "parallel")]
-            let rows: Vec<Vec<_>> = (IMG_BORDER..h - IMG_BORDER)
-                .into_par_iter()
-                .with_min_len(8)
-                .map_init(|| vec![0f32; 6 * w], scan_row)
-                .collect();
-            #[cfg(not(feature = "parallel"))]
-            let rows: Vec<Vec<_>> = {
-                let mut buf = vec![0f32; 6 * w];
-                (IMG_BORDER..h - IMG_BORDER)
-                    .map(|r| scan_row(&mut buf, r))
-                    .collect()
-            };
-            cands.extend(rows.into_iter().flatten());
+            for (k, row) in rows.iter().enumerate() {
+                let r = IMG_BORDER + k;
+                cands.extend(
+                    row.iter()
+                        .filter(|&&(l, _)| l == layer)
+                        .map(|&(l, c)| (o, l, r, c)),
+                );
+            }
         }
     }
     let run = |&(o, layer, r, c): &(usize, usize, usize, usize)| -> Vec<Keypoint> {
@@ -972,8 +1118,10 @@ fn descriptor_job(ss: &ScaleSpace, kp: &Keypoint) -> Result<DescriptorJob, Visio
     ))
 }
 
-/// Gathered descriptor samples (structure of arrays).
-struct Samples {
+/// Per-worker scratch of the descriptor: gathered samples (structure of arrays), flushed into
+/// the histogram in chunks so that memory stays bounded for any keypoint size.
+#[derive(Default)]
+struct DescScratch {
     dx: Vec<f32>,
     dy: Vec<f32>,
     rbin: Vec<f32>,
@@ -981,14 +1129,25 @@ struct Samples {
     w: Vec<f32>,
 }
 
-impl Samples {
-    fn with_capacity(n: usize) -> Self {
-        Self {
-            dx: Vec::with_capacity(n),
-            dy: Vec::with_capacity(n),
-            rbin: Vec::with_capacity(n),
-            cbin: Vec::with_capacity(n),
-            w: Vec::with_capacity(n),
+/// Samples gathered before they are accumulated (the order of accumulation is the gathering
+/// order, so chunking does not change the sums).
+const DESC_CHUNK: usize = 1024;
+
+/// Samples whose trilinear weights are computed together (vectorised) before being scattered.
+const DESC_BLOCK: usize = 16;
+
+impl DescScratch {
+    fn ensure(&mut self, n: usize) {
+        for v in [
+            &mut self.dx,
+            &mut self.dy,
+            &mut self.rbin,
+            &mut self.cbin,
+            &mut self.w,
+        ] {
+            if v.len() < n {
+                v.resize(n, 0.0);
+            }
         }
     }
 }
@@ -1015,12 +1174,23 @@ pub(crate) fn fast_exp(x: f32) -> f32 {
 }
 
 /// The raw 128-bin histogram (OpenCV's `calcSIFTDescriptor` before normalisation).
-fn raw_descriptor(
+///
+/// The samples of one window row that pass OpenCV's per-sample test
+/// (`-1 < rbin < d`, `-1 < cbin < d`, inside the image without its outer pixel ring) form one
+/// contiguous run of columns: `rbin` and `cbin` are monotone in the column (IEEE rounding of a
+/// product with a fixed factor and of a sum with a fixed term are monotone), so each test holds
+/// on an interval. The run's ends are found with the per-sample test itself, and the run is
+/// processed with whole-slice loops that vectorise; the samples, their values and the order in
+/// which they are accumulated are exactly OpenCV's (and the previous scalar loop's).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn raw_descriptor_body(
     img: &Plane<f32>,
     ptx: f32,
     pty: f32,
     ori: f32,
     scl: f32,
+    sc: &mut DescScratch,
 ) -> [f32; DESCRIPTOR_LEN] {
     const D: usize = DESCR_WIDTH;
     const N: usize = DESCR_HIST_BINS;
@@ -1042,87 +1212,86 @@ fn raw_descriptor(
     let mut hist = [0f32; (D + 2) * (D + 2) * (N + 2)];
     let data = &img.data;
     let half = D as f32 / 2.0 - 0.5;
-    // Pass 1 gathers the samples inside the rotated window, pass 2 evaluates exp, atan2 and
-    // the magnitude over whole arrays (vectorisable), pass 3 accumulates (OpenCV's structure).
-    let side = (2 * radius + 1) as usize;
-    let mut s = Samples::with_capacity(side * side);
+    // Columns j of the window inside the image without its outer ring: 0 < px + j < cols − 1.
+    let jmin = (-radius).max(1 - px);
+    let jmax = radius.min(cols - 2 - px);
+    let run_max = (jmax - jmin + 1).max(0) as usize;
+    sc.ensure(DESC_CHUNK + run_max + DESC_BLOCK);
+    if jmin <= jmax {
+        touch_window(
+            data,
+            cols as usize,
+            px + jmin - 1,
+            px + jmax + 1,
+            py - radius - 1,
+            py + radius + 1,
+            rows,
+        );
+    }
+    let mut n = 0usize;
     for i in -radius..=radius {
         let r = py + i;
-        if r <= 0 || r >= rows - 1 {
+        if r <= 0 || r >= rows - 1 || jmin > jmax {
             continue;
         }
         let fi = i as f32;
-        let row = (r * cols) as usize;
-        for j in -radius..=radius {
-            let c = px + j;
-            if c <= 0 || c >= cols - 1 {
-                continue;
-            }
+        let inside = |j: i32| -> bool {
             let fj = j as f32;
             let c_rot = fj * cos_t - fi * sin_t;
             let r_rot = fj * sin_t + fi * cos_t;
             let rbin = r_rot + half;
             let cbin = c_rot + half;
-            if !(rbin > -1.0 && rbin < D as f32 && cbin > -1.0 && cbin < D as f32) {
-                continue;
-            }
-            let idx = row + c as usize;
-            s.dx.push(data[idx + 1] - data[idx - 1]);
-            s.dy.push(data[idx - cols as usize] - data[idx + cols as usize]);
-            s.rbin.push(rbin);
-            s.cbin.push(cbin);
-            s.w.push((c_rot * c_rot + r_rot * r_rot) * exp_scale);
+            rbin > -1.0 && rbin < D as f32 && cbin > -1.0 && cbin < D as f32
+        };
+        let mut lo = jmin;
+        while lo <= jmax && !inside(lo) {
+            lo += 1;
+        }
+        if lo > jmax {
+            continue;
+        }
+        let mut hi = jmax;
+        while !inside(hi) {
+            hi -= 1;
+        }
+        let len = (hi - lo + 1) as usize;
+        let row = (r * cols) as usize;
+        let c0 = (px + lo) as usize;
+        let cu = cols as usize;
+        let mid = &data[row + c0..row + c0 + len];
+        let left = &data[row + c0 - 1..row + c0 - 1 + len];
+        let right = &data[row + c0 + 1..row + c0 + 1 + len];
+        let up = &data[row + c0 - cu..row + c0 - cu + len];
+        let down = &data[row + c0 + cu..row + c0 + cu + len];
+        let _ = mid;
+        for ((o, &a), &b) in sc.dx[n..n + len].iter_mut().zip(right).zip(left) {
+            *o = a - b;
+        }
+        for ((o, &a), &b) in sc.dy[n..n + len].iter_mut().zip(up).zip(down) {
+            *o = a - b;
+        }
+        let fisin = fi * sin_t;
+        let ficos = fi * cos_t;
+        for (k, ((rb, cb), wt)) in sc.rbin[n..n + len]
+            .iter_mut()
+            .zip(&mut sc.cbin[n..n + len])
+            .zip(&mut sc.w[n..n + len])
+            .enumerate()
+        {
+            let fj = (lo + k as i32) as f32;
+            let c_rot = fj * cos_t - fisin;
+            let r_rot = fj * sin_t + ficos;
+            *rb = r_rot + half;
+            *cb = c_rot + half;
+            *wt = (c_rot * c_rot + r_rot * r_rot) * exp_scale;
+        }
+        n += len;
+        if n >= DESC_CHUNK {
+            accumulate_descriptor(sc, n, ori, bins_per_rad, &mut hist);
+            n = 0;
         }
     }
-    let n = s.dx.len();
-    let mut ori_v = vec![0f32; n];
-    let mut mag_v = vec![0f32; n];
-    for k in 0..n {
-        let (dx, dy) = (s.dx[k], s.dy[k]);
-        ori_v[k] = fast_atan2(dy, dx);
-        mag_v[k] = (dx * dx + dy * dy).sqrt() * fast_exp(s.w[k]);
-    }
-    for k in 0..n {
-        let (rbin, cbin) = (s.rbin[k], s.cbin[k]);
-        let mag = mag_v[k];
-        let obin = (ori_v[k] - ori) * bins_per_rad;
-        let r0 = floor_small(rbin);
-        let c0 = floor_small(cbin);
-        let o0f = floor_small(obin);
-        let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
-        let (r0, c0) = (r0 as i32, c0 as i32);
-        let mut o0 = o0f as i32;
-        if o0 < 0 {
-            o0 += N as i32;
-        }
-        if o0 >= N as i32 {
-            o0 -= N as i32;
-        }
-        let v_r1 = mag * rf;
-        let v_r0 = mag - v_r1;
-        let v_rc11 = v_r1 * cf;
-        let v_rc10 = v_r1 - v_rc11;
-        let v_rc01 = v_r0 * cf;
-        let v_rc00 = v_r0 - v_rc01;
-        let v_rco111 = v_rc11 * of;
-        let v_rco110 = v_rc11 - v_rco111;
-        let v_rco101 = v_rc10 * of;
-        let v_rco100 = v_rc10 - v_rco101;
-        let v_rco011 = v_rc01 * of;
-        let v_rco010 = v_rc01 - v_rco011;
-        let v_rco001 = v_rc00 * of;
-        let v_rco000 = v_rc00 - v_rco001;
-        let idx = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
-        let rs = (D + 2) * (N + 2);
-        hist[idx] += v_rco000;
-        hist[idx + 1] += v_rco001;
-        hist[idx + N + 2] += v_rco010;
-        hist[idx + N + 3] += v_rco011;
-        hist[idx + rs] += v_rco100;
-        hist[idx + rs + 1] += v_rco101;
-        hist[idx + rs + N + 2] += v_rco110;
-        hist[idx + rs + N + 3] += v_rco111;
-    }
+    accumulate_descriptor(sc, n, ori, bins_per_rad, &mut hist);
     let mut dst = [0f32; DESCRIPTOR_LEN];
     for i in 0..D {
         for j in 0..D {
@@ -1133,6 +1302,124 @@ fn raw_descriptor(
         }
     }
     dst
+}
+
+multiversion!(fn raw_descriptor => raw_descriptor_body(
+    img: &Plane<f32>,
+    ptx: f32,
+    pty: f32,
+    ori: f32,
+    scl: f32,
+    sc: &mut DescScratch,
+) -> [f32; DESCRIPTOR_LEN]);
+
+/// Loads one value per cache line of the columns `c0..=c1` of rows `r0..=r1` (clipped to
+/// the image) so that the cache misses of a keypoint's window overlap instead of arriving one
+/// row at a time inside the gathering loop (a software prefetch without `unsafe`).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn touch_window(data: &[f32], cols: usize, c0: i32, c1: i32, r0: i32, r1: i32, rows: i32) {
+    const LINE: usize = 16;
+    let (c0, c1) = (c0.max(0) as usize, c1.max(0) as usize);
+    let (r0, r1) = (r0.max(0), r1.min(rows - 1));
+    if c1 < c0 || r1 < r0 {
+        return;
+    }
+    for r in r0 as usize..=r1 as usize {
+        let row = &data[r * cols..(r + 1) * cols];
+        let end = c1.min(cols - 1);
+        let mut c = c0;
+        while c <= end {
+            std::hint::black_box(row[c]);
+            c += LINE;
+        }
+        std::hint::black_box(row[end]);
+    }
+}
+
+/// Accumulates the first `n` gathered samples of `sc` into the descriptor histogram
+/// (orientation, magnitude, Gaussian weight, then OpenCV's trilinear split), in order.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn accumulate_descriptor(
+    sc: &mut DescScratch,
+    n: usize,
+    ori: f32,
+    bins_per_rad: f32,
+    hist: &mut [f32; (DESCR_WIDTH + 2) * (DESCR_WIDTH + 2) * (DESCR_HIST_BINS + 2)],
+) {
+    const D: usize = DESCR_WIDTH;
+    const N: usize = DESCR_HIST_BINS;
+    const B: usize = DESC_BLOCK;
+    // Orientation into `dx`, weighted magnitude into `dy` (in place, vectorisable).
+    for ((dx, dy), &w) in sc.dx[..n]
+        .iter_mut()
+        .zip(sc.dy[..n].iter_mut())
+        .zip(&sc.w[..n])
+    {
+        let (gx, gy) = (*dx, *dy);
+        *dx = fast_atan2(gy, gx);
+        *dy = (gx * gx + gy * gy).sqrt() * fast_exp(w);
+    }
+    let rs = (D + 2) * (N + 2);
+    let mut start = 0;
+    while start < n {
+        // Weights of a whole block of B samples (lanes past `n` hold stale values and are not
+        // scattered), then the scatter of the `m` real ones, in order.
+        let m = (n - start).min(B);
+        let mut idx = [0usize; B];
+        let mut v = [[0f32; B]; 8];
+        let (ori_v, mag_v) = (&sc.dx[start..start + B], &sc.dy[start..start + B]);
+        let (rb_v, cb_v) = (&sc.rbin[start..start + B], &sc.cbin[start..start + B]);
+        for k in 0..B {
+            let (rbin, cbin, mag) = (rb_v[k], cb_v[k], mag_v[k]);
+            let obin = (ori_v[k] - ori) * bins_per_rad;
+            let r0 = floor_small(rbin);
+            let c0 = floor_small(cbin);
+            let o0f = floor_small(obin);
+            let (rf, cf, of) = (rbin - r0, cbin - c0, obin - o0f);
+            let (r0, c0) = (r0 as i32, c0 as i32);
+            let mut o0 = o0f as i32;
+            if o0 < 0 {
+                o0 += N as i32;
+            }
+            if o0 >= N as i32 {
+                o0 -= N as i32;
+            }
+            let v_r1 = mag * rf;
+            let v_r0 = mag - v_r1;
+            let v_rc11 = v_r1 * cf;
+            let v_rc10 = v_r1 - v_rc11;
+            let v_rc01 = v_r0 * cf;
+            let v_rc00 = v_r0 - v_rc01;
+            let v_rco111 = v_rc11 * of;
+            let v_rco101 = v_rc10 * of;
+            let v_rco011 = v_rc01 * of;
+            let v_rco001 = v_rc00 * of;
+            v[0][k] = v_rc00 - v_rco001;
+            v[1][k] = v_rco001;
+            v[2][k] = v_rc01 - v_rco011;
+            v[3][k] = v_rco011;
+            v[4][k] = v_rc10 - v_rco101;
+            v[5][k] = v_rco101;
+            v[6][k] = v_rc11 - v_rco111;
+            v[7][k] = v_rco111;
+            // Stale lanes may give a negative index; it is never used (`k >= m`).
+            idx[k] = (((r0 + 1) * (D as i32 + 2) + c0 + 1) * (N as i32 + 2) + o0) as usize;
+        }
+        for k in 0..m {
+            let i = idx[k];
+            hist[i] += v[0][k];
+            hist[i + 1] += v[1][k];
+            hist[i + N + 2] += v[2][k];
+            hist[i + N + 3] += v[3][k];
+            hist[i + rs] += v[4][k];
+            hist[i + rs + 1] += v[5][k];
+            hist[i + rs + N + 2] += v[6][k];
+            hist[i + rs + N + 3] += v[7][k];
+        }
+        start += m;
+    }
 }
 
 /// Clamps every element at 0.2·‖v‖₂ and renormalises to unit L2 norm (a zero vector stays

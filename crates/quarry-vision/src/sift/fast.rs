@@ -1,0 +1,370 @@
+//! Speed kernels of the SIFT scale space: a Gaussian blur that computes exactly what
+//! [`crate::blur::gaussian_blur_f32`] computes (same f32 kernel, same reflect-101 border, the
+//! same sequence of IEEE operations for every output value, so the result is bit-identical)
+//! but laid out for speed:
+//!
+//! - the padded row is built with one copy of the interior and border look-ups only for the `r`
+//!   pixels at each end (instead of a border look-up per pixel);
+//! - both passes are register-blocked: a block of [`LANES`] outputs is accumulated over all taps
+//!   in registers (`acc = k0·c; acc += k_j·(a + b)` for j = 1..=r, in that order, exactly the
+//!   reference's per-pixel order), so the output is written once instead of once per tap;
+//! - the loops are compiled three times (baseline x86-64, AVX2, AVX-512F) and chosen at run time.
+//!   Rust never contracts `a * b + c` into a fused multiply-add, so the three builds perform the
+//!   same IEEE operations and give bit-identical results;
+//! - no finiteness scan (the scale space checks its input once; blurs of finite images are
+//!   finite).
+//!
+//! With the `parallel` feature both passes are split over bands of rows with rayon (images
+//! below [`PAR_MIN_PIXELS`] run on the calling thread); every output value is computed by the
+//! same operations whatever the thread count.
+
+use crate::VisionError;
+use crate::blur::{Border, GaussianKernel};
+use quarry_core::Plane;
+
+/// Defines `$name(level, args..)`, which runs `$body(args..)` compiled for the best instruction
+/// set of `level` (the body must be `#[inline(always)]` so that it is compiled inside each
+/// wrapper). Without FMA contraction (Rust never fuses `a * b + c`) every build performs the
+/// same IEEE operations, so results do not depend on the CPU.
+macro_rules! multiversion {
+    ($vis:vis fn $name:ident => $body:ident ($($arg:ident : $ty:ty),* $(,)?) -> $ret:ty) => {
+        $vis fn $name(level: $crate::sift::fast::Isa, $($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx512f")]
+            fn avx512($($arg: $ty),*) -> $ret {
+                $body($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2")]
+            fn avx2($($arg: $ty),*) -> $ret {
+                $body($($arg),*)
+            }
+            match level {
+                #[cfg(target_arch = "x86_64")]
+                #[allow(unsafe_code)]
+                // SAFETY: `level` comes from `isa()`, so the CPU supports AVX-512F.
+                $crate::sift::fast::Isa::Avx512 => unsafe { avx512($($arg),*) },
+                #[cfg(target_arch = "x86_64")]
+                #[allow(unsafe_code)]
+                // SAFETY: `level` comes from `isa()`, so the CPU supports AVX2.
+                $crate::sift::fast::Isa::Avx2 => unsafe { avx2($($arg),*) },
+                $crate::sift::fast::Isa::Base => $body($($arg),*),
+            }
+        }
+    };
+}
+pub(super) use multiversion;
+
+/// Outputs accumulated together in registers.
+const LANES: usize = 32;
+
+/// Images with fewer pixels are blurred on the calling thread (task overhead dominates).
+#[cfg(feature = "parallel")]
+const PAR_MIN_PIXELS: usize = 128 * 128;
+
+/// Rows per parallel task.
+#[cfg(feature = "parallel")]
+const ROWS_PER_TASK: usize = 16;
+
+/// The instruction set the loops were compiled for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Isa {
+    Base,
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+pub(super) fn isa() -> Isa {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return Isa::Avx512;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Isa::Avx2;
+        }
+    }
+    Isa::Base
+}
+
+/// The half kernel `k_0 … k_r` of `cv2.GaussianBlur(.., (0, 0), sigma)` on float images,
+/// rounded to f32 (as [`crate::blur::gaussian_blur_f32`]).
+pub(super) fn half_kernel(sigma: f64) -> Result<Vec<f32>, VisionError> {
+    let k = GaussianKernel::new(sigma)?;
+    let r = k.radius();
+    Ok(k.weights[r..].iter().map(|&v| v as f32).collect())
+}
+
+/// Blurs `src` (finite values, at least 1×1) with the half kernel `k`; bit-identical to
+/// [`crate::blur::gaussian_blur_f32`] with the same σ.
+/// `tmp` is scratch (grown as needed, its contents are overwritten).
+pub(super) fn blur(src: &Plane<f32>, k: &[f32], tmp: &mut Vec<f32>) -> Plane<f32> {
+    let (w, h) = (src.width as usize, src.height as usize);
+    if tmp.len() < w * h {
+        tmp.resize(w * h, 0.0);
+    }
+    let tmp = &mut tmp[..w * h];
+    let mut out = vec![0f32; w * h];
+    let level = isa();
+    horizontal(&src.data, tmp, w, k, level);
+    vertical(tmp, &mut out, w, h, k, level);
+    Plane {
+        width: src.width,
+        height: src.height,
+        data: out,
+    }
+}
+
+fn horizontal(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], level: Isa) {
+    let run = |s: &[f32], d: &mut [f32]| {
+        let mut pad = Vec::with_capacity(w + 2 * (k.len() - 1));
+        dispatch_h(s, d, w, k, &mut pad, level);
+    };
+    #[cfg(feature = "parallel")]
+    if src.len() >= PAR_MIN_PIXELS {
+        use rayon::prelude::*;
+        src.par_chunks(w * ROWS_PER_TASK)
+            .zip(dst.par_chunks_mut(w * ROWS_PER_TASK))
+            .for_each(|(s, d)| run(s, d));
+        return;
+    }
+    run(src, dst);
+}
+
+fn vertical(src: &[f32], dst: &mut [f32], w: usize, h: usize, k: &[f32], level: Isa) {
+    let run = |y0: usize, d: &mut [f32]| dispatch_v(src, d, w, h, y0, k, level);
+    #[cfg(feature = "parallel")]
+    if src.len() >= PAR_MIN_PIXELS {
+        use rayon::prelude::*;
+        dst.par_chunks_mut(w * ROWS_PER_TASK)
+            .enumerate()
+            .for_each(|(band, d)| run(band * ROWS_PER_TASK, d));
+        return;
+    }
+    run(0, dst);
+}
+
+fn dispatch_h(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>, level: Isa) {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX-512F (checked by `isa`); the function is otherwise safe.
+        Isa::Avx512 => unsafe { h_avx512(src, dst, w, k, pad) },
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked by `isa`); the function is otherwise safe.
+        Isa::Avx2 => unsafe { h_avx2(src, dst, w, k, pad) },
+        Isa::Base => h_body(src, dst, w, k, pad),
+    }
+}
+
+fn dispatch_v(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32], level: Isa) {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX-512F (checked by `isa`); the function is otherwise safe.
+        Isa::Avx512 => unsafe { v_avx512(src, dst, w, h, y0, k) },
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked by `isa`); the function is otherwise safe.
+        Isa::Avx2 => unsafe { v_avx2(src, dst, w, h, y0, k) },
+        Isa::Base => v_body(src, dst, w, h, y0, k),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn h_avx512(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
+    h_body(src, dst, w, k, pad);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn h_avx2(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
+    h_body(src, dst, w, k, pad);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn v_avx512(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]) {
+    v_body(src, dst, w, h, y0, k);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn v_avx2(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]) {
+    v_body(src, dst, w, h, y0, k);
+}
+
+/// Horizontal pass over whole rows of `src` into `dst` (same length, a multiple of `w`).
+/// Interior pixels (whose taps all fall inside the row) read the row directly; the at most
+/// `r` pixels at each end read a small padded copy of the row's end.
+// Inlined into the ISA wrappers so that the loops are compiled for each ISA there.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn h_body(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
+    let r = k.len() - 1;
+    let k0 = k[0];
+    // Output ranges: [0, a) left edge, [a, c) interior, [c, w) right edge.
+    let a = r.min(w);
+    let c = w.saturating_sub(r).max(a);
+    for (s, d) in src.chunks_exact(w).zip(dst.chunks_exact_mut(w)) {
+        // Interior: out[x] uses s[x − r ..= x + r].
+        let mut x = a;
+        while x + LANES <= c {
+            let mut acc = [0f32; LANES];
+            for (o, &v) in acc.iter_mut().zip(&s[x..x + LANES]) {
+                *o = k0 * v;
+            }
+            for (j, &kj) in k.iter().enumerate().skip(1) {
+                let left = &s[x - j..x - j + LANES];
+                let right = &s[x + j..x + j + LANES];
+                for ((o, &u), &v) in acc.iter_mut().zip(left).zip(right) {
+                    *o += kj * (u + v);
+                }
+            }
+            d[x..x + LANES].copy_from_slice(&acc);
+            x += LANES;
+        }
+        for (xx, o) in d[..c].iter_mut().enumerate().skip(x) {
+            let mut acc = k0 * s[xx];
+            for (j, &kj) in k.iter().enumerate().skip(1) {
+                acc += kj * (s[xx - j] + s[xx + j]);
+            }
+            *o = acc;
+        }
+        // Edges through a padded copy: pad[q] = s[border(lo + q)].
+        for (lo_x, hi_x) in [(0, a), (c, w)] {
+            if lo_x == hi_x {
+                continue;
+            }
+            let lo = lo_x as isize - r as isize;
+            pad.clear();
+            pad.extend(
+                (0..hi_x - lo_x + 2 * r)
+                    .map(|q| s[Border::Reflect101.interpolate(lo + q as isize, w)]),
+            );
+            for (q, o) in d[lo_x..hi_x].iter_mut().enumerate() {
+                let centre = q + r;
+                let mut acc = k0 * pad[centre];
+                for (j, &kj) in k.iter().enumerate().skip(1) {
+                    acc += kj * (pad[centre - j] + pad[centre + j]);
+                }
+                *o = acc;
+            }
+        }
+    }
+}
+
+/// Columns processed together by the vertical pass: the `2r + 1` source rows of a strip stay
+/// in the L1 cache from one output row to the next.
+const STRIP: usize = 8 * LANES;
+
+/// Vertical pass: rows `y0..` of the output (as many as `dst` holds) from the whole `src`,
+/// strip by strip of [`STRIP`] columns.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]) {
+    let k0 = k[0];
+    let row = |y: isize| -> &[f32] {
+        let yy = Border::Reflect101.interpolate(y, h);
+        &src[yy * w..(yy + 1) * w]
+    };
+    let n_rows = dst.len() / w;
+    // Row pairs (up, down) of every tap j = 1..=r, for every output row of the band.
+    let r = k.len() - 1;
+    let mut pairs: Vec<(&[f32], &[f32])> = Vec::with_capacity(n_rows * r);
+    let mut centres: Vec<&[f32]> = Vec::with_capacity(n_rows);
+    for i in 0..n_rows {
+        let y = (y0 + i) as isize;
+        centres.push(row(y));
+        pairs.extend((1..=r).map(|j| (row(y - j as isize), row(y + j as isize))));
+    }
+    let mut x0 = 0;
+    while x0 < w {
+        let x1 = (x0 + STRIP).min(w);
+        for (i, d) in dst.chunks_exact_mut(w).enumerate() {
+            let centre = centres[i];
+            let pairs = &pairs[i * r..(i + 1) * r];
+            let mut x = x0;
+            while x + LANES <= x1 {
+                let mut acc = [0f32; LANES];
+                for (a, &v) in acc.iter_mut().zip(&centre[x..x + LANES]) {
+                    *a = k0 * v;
+                }
+                for (&kj, &(up, down)) in k[1..].iter().zip(pairs) {
+                    let up = &up[x..x + LANES];
+                    let down = &down[x..x + LANES];
+                    for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
+                        *a += kj * (u + v);
+                    }
+                }
+                d[x..x + LANES].copy_from_slice(&acc);
+                x += LANES;
+            }
+            for xx in x..x1 {
+                let mut a = k0 * centre[xx];
+                for (&kj, &(up, down)) in k[1..].iter().zip(pairs) {
+                    a += kj * (up[xx] + down[xx]);
+                }
+                d[xx] = a;
+            }
+        }
+        x0 = x1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bit-identical to the reference blur, for every ISA build, sizes around the block width
+    /// and kernels wider than the image.
+    #[test]
+    fn blur_is_bit_identical_to_reference() {
+        let mut levels = vec![Isa::Base];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                levels.push(Isa::Avx2);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                levels.push(Isa::Avx512);
+            }
+        }
+        let mut seed = 12_345u32;
+        for &(w, h) in &[
+            (1usize, 1usize),
+            (3, 2),
+            (31, 7),
+            (32, 5),
+            (33, 40),
+            (97, 65),
+            (200, 150),
+        ] {
+            let img = Plane::from_fn(w as u32, h as u32, |_, _| {
+                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (seed >> 8) as f32 / 65_536.0
+            });
+            for sigma in [0.7, 1.2263, 1.5450, 3.09, 6.0] {
+                let want = crate::blur::gaussian_blur_f32(&img, sigma).unwrap();
+                let k = half_kernel(sigma).unwrap();
+                for &level in &levels {
+                    let mut tmp = vec![0f32; w * h];
+                    let mut out = vec![0f32; w * h];
+                    horizontal(&img.data, &mut tmp, w, &k, level);
+                    vertical(&tmp, &mut out, w, h, &k, level);
+                    let same = out
+                        .iter()
+                        .zip(&want.data)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "{w}x{h} sigma {sigma} {level:?}");
+                }
+                let mut scratch = vec![f32::NAN; 7];
+                assert_eq!(blur(&img, &k, &mut scratch).data, want.data);
+            }
+        }
+    }
+}
