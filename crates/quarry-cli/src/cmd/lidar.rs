@@ -314,7 +314,7 @@ fn gt_trajectories(window: &[EvalFrame]) -> Vec<Vec<(f64, f64)>> {
 }
 
 /// Draws the room (walls, obstacles), the scanners, the background points, GT (grey) and the
-/// tracks (one colour per id). No text, so no font is needed.
+/// tracks (one colour per id), with a caption and axes in metres (the bundled font).
 pub fn plot_room(
     path: &Path,
     room: &Room,
@@ -323,6 +323,7 @@ pub fn plot_room(
     tracks: &[Vec<(f64, f64)>],
     gt: &[Vec<(f64, f64)>],
 ) -> Result<(), String> {
+    crate::fonts::register()?;
     let (w, h) = (1100u32, 900u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
@@ -330,7 +331,20 @@ pub fn plot_room(
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
             .margin(20)
+            .caption(
+                "scanners (red), background (blue dots), truth (grey), tracks (colours)",
+                ("sans-serif", 16),
+            )
+            .x_label_area_size(40)
+            .y_label_area_size(50)
             .build_cartesian_2d(-0.5f64..13.5f64, -0.5f64..8.5f64)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .draw()
             .map_err(|e| e.to_string())?;
         let e = |x: Result<(), DrawingAreaErrorKind<_>>| x.map_err(|e| e.to_string());
         for wall in &room.walls {

@@ -399,21 +399,36 @@ fn save_png(path: &Path, buf: Vec<u8>, w: u32, h: u32) -> Result<(), CmdError> {
 }
 
 /// Fig. 1 analogue: truth dashed, estimates solid, true landmarks as crosses, estimated
-/// landmarks as dots, the last epoch's landmark detections as grey segments. No text.
+/// landmarks as dots, the last epoch's landmark detections as grey segments; a caption and
+/// axes in metres.
 fn plot_fig1(
     path: &Path,
     scen: &SlamotScenarioConfig,
     res: &SimRunResult,
     frames: &[quarry_sim::slamot::SlamotFrame],
 ) -> Result<(), CmdError> {
-    let (w, h) = (900u32, 900u32);
+    crate::fonts::register()?;
+    let (w, h) = (900u32, 940u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
             .margin(15)
+            .caption(
+                "robot (black), targets (colours): truth dashed, estimate solid; landmarks: x true, dot estimated",
+                ("sans-serif", 15),
+            )
+            .x_label_area_size(40)
+            .y_label_area_size(50)
             .build_cartesian_2d(0f64..100f64, 0f64..100f64)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .draw()
             .map_err(|e| e.to_string())?;
         let e = |x: Result<(), String>| x;
         // last epoch's detections
@@ -566,6 +581,7 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
                 .iter()
                 .map(|p| (p.particles as f64, p.robot_err_mean))
                 .collect()],
+            &["Fig. 3: robot position error vs particles"],
         )?;
         let mut fig4: Vec<Vec<(f64, f64)>> = (0..3)
             .map(|l| {
@@ -586,7 +602,11 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
                 .map(|p| (p.particles as f64, p.target_err_avg))
                 .collect(),
         );
-        plot_sweep(&dir.join("fig4.png"), &fig4)?;
+        plot_sweep(
+            &dir.join("fig4.png"),
+            &fig4,
+            &["target 1", "target 2", "target 3", "mean over targets"],
+        )?;
     }
     let report = SweepReport {
         scenario: format!("{:?}", args.scenario).to_lowercase(),
@@ -635,9 +655,10 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
     })
 }
 
-/// Error-vs-particles curves (one panel per series, 1 or 2x2), y from 0; no text (the
-/// numbers are in sweep.csv).
-fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), CmdError> {
+/// Error-vs-particles curves (one panel per series, 1 or 2x2, titled by `titles`), y from 0,
+/// axes labelled (the numbers are also in sweep.csv).
+fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>], titles: &[&str]) -> Result<(), CmdError> {
+    crate::fonts::register()?;
     let (w, h) = (900u32, 700u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
@@ -657,15 +678,18 @@ fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), CmdError> {
                 .fold(0.01, f64::max)
                 * 1.3;
             let mut chart = ChartBuilder::on(area)
-                .margin(20)
+                .margin(15)
+                .caption(titles.get(i).copied().unwrap_or(""), ("sans-serif", 16))
+                .x_label_area_size(35)
+                .y_label_area_size(50)
                 .build_cartesian_2d(0f64..xmax, 0f64..ymax)
                 .map_err(|e| e.to_string())?;
-            // axes
             chart
-                .draw_series(std::iter::once(PathElement::new(
-                    vec![(0.0, ymax), (0.0, 0.0), (xmax, 0.0)],
-                    BLACK.stroke_width(1),
-                )))
+                .configure_mesh()
+                .light_line_style(RGBColor(235, 235, 235))
+                .x_desc("particles")
+                .y_desc("mean position error (m)")
+                .draw()
                 .map_err(|e| e.to_string())?;
             let c = COLOURS[(i + usize::from(series.len() > 1)) % COLOURS.len()];
             chart
