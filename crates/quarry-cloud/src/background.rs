@@ -121,6 +121,14 @@ pub struct LongTermConfig {
     pub alpha: f64,
     /// Relearn after this many consecutive static scans away from `b_n` (`T_relearn` = 2 s = 80).
     pub relearn_scans: u32,
+    /// Update `b_n` only from static readings consistent with it (`|d − b_n| ≤ τ_g(d)`).
+    ///
+    /// The spec's literal update follows every static-labelled reading, including readings on a
+    /// slow or briefly still person that pass (5)–(6); `b_n` then drifts toward people and the
+    /// override misses the wall when it reappears (ghost tracks). The spec's own relearn rule
+    /// covers genuine background changes, so the update may be restricted to readings that
+    /// already agree with `b_n` (default `true`; `false` reproduces the ungated rule).
+    pub gated_update: bool,
 }
 
 impl Default for LongTermConfig {
@@ -130,6 +138,7 @@ impl Default for LongTermConfig {
             min_valid_fraction: 0.5,
             alpha: 0.02,
             relearn_scans: 80,
+            gated_update: true,
         }
     }
 }
@@ -433,7 +442,9 @@ impl ChiSquareBackground {
             {
                 self.background[n] = Some(mean);
                 self.static_run[n] = 0;
-            } else if let Some(b) = self.background[n] {
+            } else if let Some(b) = self.background[n]
+                && (!lt.gated_update || (d - b).abs() <= (3.0 * sigma_d(d)).max(0.03))
+            {
                 self.background[n] = Some((1.0 - lt.alpha) * b + lt.alpha * d);
             }
         }
@@ -735,6 +746,52 @@ mod tests {
                 until >= 1 && until <= max_scans,
                 "static again after {until} scans (max {max_scans})"
             );
+        }
+    }
+
+    #[test]
+    fn gated_update_keeps_background_under_a_still_person() {
+        // wall at 5 m; a person stands at 3 m for 60 scans (static labels after the window
+        // fills, but < T_relearn), then leaves. Gated: b_n stays on the wall and the wall is
+        // static on the first scan. Ungated: b_n drifts toward 3 m and the wall comes back
+        // dynamic.
+        for (gated, expect_static) in [(true, true), (false, false)] {
+            let lt = LongTermConfig {
+                warm_scans: 100,
+                gated_update: gated,
+                ..LongTermConfig::default()
+            };
+            let mut bg = ChiSquareBackground::new(
+                &one_beam_geometry(),
+                ChiSquareConfig {
+                    region_constraint: false,
+                    long_term: Some(lt),
+                    ..ChiSquareConfig::default()
+                },
+            )
+            .unwrap();
+            let mut k = 0u32;
+            let mut next = |bg: &mut ChiSquareBackground, mm: u16| {
+                k += 1;
+                bg.classify_scan(&scan1(k, mm)).unwrap()[0]
+            };
+            for _ in 0..150 {
+                next(&mut bg, 5000);
+            }
+            let mut statics = 0;
+            for _ in 0..60 {
+                if next(&mut bg, 3000) == BeamLabel::Static {
+                    statics += 1;
+                }
+            }
+            assert!(statics >= 15, "the still person became static {statics} times");
+            let b = bg.long_term_background()[0].unwrap();
+            if gated {
+                assert!((b - 5.0).abs() < 1e-9, "gated b_n moved to {b}");
+            } else {
+                assert!(b < 4.9, "ungated b_n stayed at {b}");
+            }
+            assert_eq!(next(&mut bg, 5000) == BeamLabel::Static, expect_static);
         }
     }
 

@@ -65,6 +65,9 @@ pub struct LidarPeopleConfig {
     pub alpha_b: f64,
     /// Relearn time T_relearn, seconds [Q: 2].
     pub t_relearn_s: f64,
+    /// Update b_n only from static readings within τ_g of it [Q: true; the ungated update
+    /// drifts toward people and leaves wall ghosts — see docs/lidar-people.md].
+    pub bg_gated_update: bool,
 
     // ----- fusion (§2.4) -----
     /// Fused-frame interval T_F, seconds [P: 0.05].
@@ -162,6 +165,7 @@ impl LidarPeopleConfig {
             t_warm_s: 5.0,
             alpha_b: 0.02,
             t_relearn_s: 2.0,
+            bg_gated_update: true,
             frame_period_s: 0.05,
             tau_sync_s: 0.0125,
             l_max_s: 0.1,

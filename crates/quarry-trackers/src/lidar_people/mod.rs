@@ -159,6 +159,7 @@ pub fn background_of(
             min_valid_fraction: 0.5,
             alpha: cfg.alpha_b,
             relearn_scans: per_scan(cfg.t_relearn_s) as u32,
+            gated_update: cfg.bg_gated_update,
         }),
     };
     Ok(ChiSquareBackground::new(geometry, bc).map_err(CoreError::from)?)
