@@ -12,6 +12,7 @@
 mod config;
 mod metrics;
 mod pipeline;
+mod recorded;
 mod tracker;
 
 pub use config::{LidarPeopleConfig, Preset};
@@ -21,6 +22,10 @@ pub use metrics::{
 pub use pipeline::{
     AssemblerFusion, ClientPipeline, DynamicScan, Fusion, RoomRun, RowSource, ServerPipeline,
     encode_dynamic, run_room, run_room_default,
+};
+pub use recorded::{
+    LabelledError, LabelledPerson, RecordedFrame, RecordedRun, parse_legs_csv, run_recorded,
+    score_labelled,
 };
 pub use tracker::{
     ContourDetector, ContourFit, FusedPoints, KfGnnTracker, LidarTrack, Table1Tracker,
