@@ -97,6 +97,81 @@ pub fn region_constraint(
     Ok(out)
 }
 
+/// [`region_constraint`] for the points of one scan in the sensor frame, beam `n` at angle
+/// `angle_min + n·angle_increment` (same result, without a kd-tree).
+///
+/// A point at range `r` from the sensor is farther than `r·sin|Δφ|` from any point whose beam
+/// is `Δφ` away (`r` beyond 90°), so only the beams within `asin(δ/r)` of it (and, for fields of
+/// view near 360°, those within that angle across the wrap) can be neighbours; points closer
+/// than δ to the sensor are compared with every beam. Cost: about 2·δ/(r·Δφ) distance checks
+/// per candidate instead of a kd-tree build and query.
+pub fn region_constraint_scan(
+    points: &[Option<Point2>],
+    candidate: &[bool],
+    delta: f64,
+    angle_increment: f64,
+) -> Result<Vec<bool>> {
+    quarry_core::ensure_len(candidate.len(), points.len(), "candidate flags")?;
+    if !(delta.is_finite() && delta >= 0.0) {
+        return Err(CoreError::invalid("delta", "must be finite and >= 0").into());
+    }
+    let inc = angle_increment.abs();
+    if !(inc.is_finite() && inc > 0.0) {
+        return Err(CoreError::invalid("angle_increment", "must be finite and non-zero").into());
+    }
+    let n_beams = points.len();
+    let d2max = delta * delta;
+    // beams per full turn (wrap-around distance in beam indices)
+    let per_turn = std::f64::consts::TAU / inc;
+    let mut out = vec![false; n_beams];
+    for n in 0..n_beams {
+        if !candidate[n] {
+            continue;
+        }
+        let Some(p) = points[n] else { continue };
+        let r = p.x.hypot(p.y);
+        let w = if r > delta {
+            // +1 beam against rounding of the angles
+            ((delta / r).asin() / inc).floor() + 1.0
+        } else {
+            f64::INFINITY
+        };
+        let (mut ns, mut nd) = (0usize, 0usize);
+        let mut visit = |j: usize| {
+            if j == n {
+                return;
+            }
+            if let Some(q) = points[j]
+                && (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y) <= d2max
+            {
+                if candidate[j] {
+                    ns += 1;
+                } else {
+                    nd += 1;
+                }
+            }
+        };
+        let wrap_from = per_turn - w; // |n − j| ≥ this is within w across the wrap
+        if !w.is_finite() || 2.0 * w + 1.0 >= n_beams as f64 || wrap_from <= w {
+            (0..n_beams).for_each(&mut visit);
+        } else {
+            let wi = w as usize;
+            (n.saturating_sub(wi)..=(n + wi).min(n_beams - 1)).for_each(&mut visit);
+            if wrap_from < n_beams as f64 {
+                let k = wrap_from.ceil() as usize;
+                if n >= k {
+                    (0..=n - k).for_each(&mut visit);
+                }
+                if n + k < n_beams {
+                    (n + k..n_beams).for_each(&mut visit);
+                }
+            }
+        }
+        out[n] = (ns + nd == 0) || ns > nd;
+    }
+    Ok(out)
+}
+
 /// How σ is chosen per beam.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SigmaMode {
@@ -347,7 +422,12 @@ impl ChiSquareBackground {
             candidate[n] = d2 < ln_th && static_probability(d2) > self.cfg.p_threshold;
         }
         let mut is_static = if self.cfg.region_constraint {
-            region_constraint(&points, &candidate, self.cfg.region_radius)?
+            region_constraint_scan(
+                &points,
+                &candidate,
+                self.cfg.region_radius,
+                self.table.geometry().angle_increment,
+            )?
         } else {
             candidate.clone()
         };
@@ -746,6 +826,37 @@ mod tests {
                 until >= 1 && until <= max_scans,
                 "static again after {until} scans (max {max_scans})"
             );
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn region_scan_equals_kd_version(
+            n_beams in 2usize..200,
+            fov_deg in 10.0f64..360.0,
+            seed in 0u64..1000,
+            delta in 0.05f64..1.0,
+        ) {
+            let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+            let inc = fov_deg.to_radians() / n_beams as f64;
+            let amin = -fov_deg.to_radians() / 2.0;
+            let u = rand_distr::Uniform::new(0.0f64, 1.0).unwrap();
+            // walls with steps, a few invalid beams, some points near the sensor
+            let mut r = 0.1 + 5.0 * u.sample(&mut rng);
+            let mut pts = Vec::new();
+            let mut cand = Vec::new();
+            for k in 0..n_beams {
+                if u.sample(&mut rng) < 0.1 {
+                    r = 0.05 + 6.0 * u.sample(&mut rng);
+                }
+                r += 0.02 * (u.sample(&mut rng) - 0.5);
+                let a = amin + inc * k as f64;
+                pts.push((u.sample(&mut rng) > 0.05).then(|| Point2::new(r * a.cos(), r * a.sin())));
+                cand.push(u.sample(&mut rng) < 0.7 && pts[k].is_some());
+            }
+            let a = region_constraint(&pts, &cand, delta).unwrap();
+            let b = region_constraint_scan(&pts, &cand, delta, inc).unwrap();
+            prop_assert_eq!(a, b);
         }
     }
 

@@ -928,6 +928,7 @@ mod tests {
             let good = dth < 2f64.to_radians() && dt < 0.02 && r.rms < 0.02;
             ok += usize::from(good);
         }
+        eprintln!("point-to-line: {ok}/200, mean iterations {}", f64::from(iters) / 200.0);
         assert!(ok >= 170, "recovered {ok}/200");
         assert!(iters < 200 * 12, "mean iterations {}", f64::from(iters) / 200.0);
     }

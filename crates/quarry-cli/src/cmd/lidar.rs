@@ -311,6 +311,8 @@ pub struct RecordedSummary {
     pub skipped_backwards: u64,
     /// Beams marked invalid (NaN, inf, out of range).
     pub invalid_beams: u64,
+    /// Scans used only to fill the background window (not tracked).
+    pub warm_up_scans: usize,
     /// Gaps longer than 3 scan periods (the scanner stopped sending).
     pub gaps: usize,
     /// Longest interval between scans, seconds.
@@ -390,6 +392,7 @@ fn run_recorded_cmd(
         skipped_bad_rows: stats.skipped_bad_rows,
         skipped_backwards: stats.skipped_backwards + run.skipped_backwards as u64,
         invalid_beams: stats.invalid_beams,
+        warm_up_scans: run.warm_up_scans,
         gaps: run.gaps,
         longest_gap_s: run.longest_gap_s,
         distinct_tracks: run.distinct_tracks(),
@@ -420,8 +423,8 @@ fn run_recorded_cmd(
         println!("{}", serde_json::to_string(&summary).map_err(|e| e.to_string())?);
     } else {
         println!(
-            "quarry lidar --scans {}: preset {}, {} beams, {} scans",
-            summary.scans_file, summary.preset, summary.n_beams, summary.frames
+            "quarry lidar --scans {}: preset {}, {} beams, {} scans ({} warm-up scans not tracked)",
+            summary.scans_file, summary.preset, summary.n_beams, summary.frames, summary.warm_up_scans
         );
         println!(
             "  skipped: {} malformed rows, {} backwards stamps; {} invalid beams; {} gaps (longest {:.3} s)",

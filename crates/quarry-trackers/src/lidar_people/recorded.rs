@@ -8,6 +8,9 @@
 //! - a scan whose stamp is earlier than the previous accepted one (`skipped_backwards`; the
 //!   background model would reject it);
 //! - a scan with the wrong beam count (`skipped_bad_scans`);
+//! - warm-up: the first `window_m / 2` scans are classified (they fill the background window)
+//!   but not tracked — until then every beam is dynamic by rule (3) (`warm_up_scans`; their
+//!   frames carry no tracks);
 //! - a gap: the scanner stopped sending for more than `gap_factor` periods (`gaps`, the longest
 //!   in `longest_gap_s`). Nothing is invented for the missing time; the tracker sees a longer Δt
 //!   on the next scan, and Table 1 gate (8) then decides whether tracks survive.
@@ -43,6 +46,8 @@ pub struct RecordedRun {
     pub skipped_backwards: usize,
     /// Scans skipped because their beam count or geometry differs from the run's.
     pub skipped_bad_scans: usize,
+    /// Scans classified but not tracked while the background window filled.
+    pub warm_up_scans: usize,
     /// Gaps longer than `gap_factor` scan periods.
     pub gaps: usize,
     /// Longest interval between consecutive processed scans, seconds.
@@ -134,6 +139,16 @@ pub fn run_recorded(
         let t0 = Instant::now();
         let labels = bg.classify(scan)?;
         run.client_seconds += t0.elapsed().as_secs_f64();
+        last_t = Some(scan.t);
+        if run.warm_up_scans < cfg.window_m / 2 {
+            run.warm_up_scans += 1;
+            run.frames.push(RecordedFrame {
+                t: scan.t,
+                dynamic: labels.iter().filter(|l| **l == BeamLabel::Dynamic).count(),
+                tracks: Vec::new(),
+            });
+            continue;
+        }
         let mut points = Vec::new();
         for (n, l) in labels.iter().enumerate() {
             if *l != BeamLabel::Dynamic {
@@ -166,7 +181,6 @@ pub fn run_recorded(
             dynamic: frame.points.len(),
             tracks: tracker.last_rows().to_vec(),
         });
-        last_t = Some(scan.t);
     }
     Ok(run)
 }
@@ -361,6 +375,7 @@ mod tests {
         assert_eq!(run.skipped_bad_scans, 1);
         assert_eq!(run.gaps, 1);
         assert_eq!(run.frames.len(), 101);
+        assert_eq!(run.warm_up_scans, 20);
         // a static wall never makes a track
         assert_eq!(run.distinct_tracks(), 0);
         assert!(run_recorded(&cfg, &g, Pose2::default(), &scans, 0.5).is_err());
