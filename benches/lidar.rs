@@ -21,9 +21,7 @@ use std::time::Duration;
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use quarry::cloud::background::ChiSquareBackground;
 use quarry::core::{Pose2, ScanGeometry, SensorId, TimeUs};
-use quarry::sim::lidar_room::{
-    ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand,
-};
+use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
 use quarry::trackers::lidar_people::{
     AssemblerFusion, ClientPipeline, DefaultLidarTracker, DynamicScan, LidarPeopleConfig,
     ServerPipeline, background_of,

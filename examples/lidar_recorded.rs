@@ -13,7 +13,10 @@ use std::path::PathBuf;
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let dir = PathBuf::from(args.next().unwrap_or_else(|| "../shared/data/leg-tracker".into()));
+    let dir = PathBuf::from(
+        args.next()
+            .unwrap_or_else(|| "../shared/data/leg-tracker".into()),
+    );
     let key = args.next().unwrap_or_else(|| "positive_1".into());
     let meta = std::fs::read_to_string(dir.join("scan_meta.json")).expect("scan_meta.json");
     let geometry = parse_scan_meta(&meta, &key).expect("geometry");

@@ -895,7 +895,10 @@ mod tests {
                     statics += 1;
                 }
             }
-            assert!(statics >= 15, "the still person became static {statics} times");
+            assert!(
+                statics >= 15,
+                "the still person became static {statics} times"
+            );
             let b = bg.long_term_background()[0].unwrap();
             if gated {
                 assert!((b - 5.0).abs() < 1e-9, "gated b_n moved to {b}");

@@ -612,7 +612,11 @@ fn closest_with_normal(model: &[Point2], q: &Point2) -> (Point2, f64, (f64, f64)
         if d2 < out.1 {
             let (ux, uy) = (model[b].x - model[a].x, model[b].y - model[a].y);
             let l = ux.hypot(uy);
-            let n = if l > 0.0 { (-uy / l, ux / l) } else { (0.0, 0.0) };
+            let n = if l > 0.0 {
+                (-uy / l, ux / l)
+            } else {
+                (0.0, 0.0)
+            };
             out = (p, d2, n);
         }
     }
@@ -907,7 +911,11 @@ mod tests {
         let icp = Icp2d::contour_point_to_line();
         let (mut ok, mut iters) = (0, 0);
         for _ in 0..200 {
-            let truth = Pose2::new(3.0 * u.sample(&mut rng), 2.0 * u.sample(&mut rng), 3.0 * u.sample(&mut rng));
+            let truth = Pose2::new(
+                3.0 * u.sample(&mut rng),
+                2.0 * u.sample(&mut rng),
+                3.0 * u.sample(&mut rng),
+            );
             let start = (36.0 + 36.0 * u.sample(&mut rng)).round() as usize;
             let span = (30.0 + 10.0 * u.sample(&mut rng)).round() as usize;
             let data: Vec<Point2> = (0..span)
@@ -928,9 +936,16 @@ mod tests {
             let good = dth < 2f64.to_radians() && dt < 0.02 && r.rms < 0.02;
             ok += usize::from(good);
         }
-        eprintln!("point-to-line: {ok}/200, mean iterations {}", f64::from(iters) / 200.0);
+        eprintln!(
+            "point-to-line: {ok}/200, mean iterations {}",
+            f64::from(iters) / 200.0
+        );
         assert!(ok >= 170, "recovered {ok}/200");
-        assert!(iters < 200 * 12, "mean iterations {}", f64::from(iters) / 200.0);
+        assert!(
+            iters < 200 * 12,
+            "mean iterations {}",
+            f64::from(iters) / 200.0
+        );
     }
 
     #[test]

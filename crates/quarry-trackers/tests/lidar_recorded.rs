@@ -13,7 +13,10 @@ use quarry_trackers::lidar_people::{
 use std::path::PathBuf;
 
 fn data() -> Option<PathBuf> {
-    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/leg-tracker"));
+    let d = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/leg-tracker"
+    ));
     if d.join("scan_meta.json").exists() {
         Some(d)
     } else {

@@ -8,8 +8,8 @@ use crate::output::{CmdResult, Output};
 use crate::progress;
 use clap::Args;
 use plotters::prelude::*;
-use quarry_core::{Point2, Pose2, TimeUs};
 use quarry_cloud::csv_scans::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
+use quarry_core::{Point2, Pose2, TimeUs};
 use quarry_sim::lidar_room::{
     ClockProfile, GtWriter, NetworkModel, Obstacle, Room, ScannerSim, Scenario, SpeedBand,
 };
@@ -351,8 +351,10 @@ fn run_recorded_cmd(
             .unwrap_or_else(|| Path::new("."))
             .join("scan_meta.json")
     });
-    let meta_text = std::fs::read_to_string(&meta).map_err(|e| format!("{}: {e}", meta.display()))?;
-    let geometry = parse_scan_meta(&meta_text, &key).map_err(|e| format!("{}: {e}", meta.display()))?;
+    let meta_text =
+        std::fs::read_to_string(&meta).map_err(|e| format!("{}: {e}", meta.display()))?;
+    let geometry =
+        parse_scan_meta(&meta_text, &key).map_err(|e| format!("{}: {e}", meta.display()))?;
     let policy = if args.skip_bad_rows {
         RowPolicy::Skip
     } else {
@@ -420,11 +422,18 @@ fn run_recorded_cmd(
         std::fs::write(out.join("metrics.json"), js).map_err(|e| e.to_string())?;
     }
     if output.json {
-        println!("{}", serde_json::to_string(&summary).map_err(|e| e.to_string())?);
+        println!(
+            "{}",
+            serde_json::to_string(&summary).map_err(|e| e.to_string())?
+        );
     } else {
         println!(
             "quarry lidar --scans {}: preset {}, {} beams, {} scans ({} warm-up scans not tracked)",
-            summary.scans_file, summary.preset, summary.n_beams, summary.frames, summary.warm_up_scans
+            summary.scans_file,
+            summary.preset,
+            summary.n_beams,
+            summary.frames,
+            summary.warm_up_scans
         );
         println!(
             "  skipped: {} malformed rows, {} backwards stamps; {} invalid beams; {} gaps (longest {:.3} s)",
@@ -441,7 +450,14 @@ fn run_recorded_cmd(
         if let Some(l) = &summary.labelled {
             println!(
                 "  vs labelled legs: {}/{} scans matched within {} m, RMSE {:.3} m, mean {:.3} m, median {:.3} m; two-leg labels: {} matched, RMSE {:.3} m",
-                l.matched, l.labelled, cfg.d_match, l.rmse_m, l.mean_m, l.median_m, l.matched_two_legs, l.rmse_two_legs_m
+                l.matched,
+                l.labelled,
+                cfg.d_match,
+                l.rmse_m,
+                l.mean_m,
+                l.median_m,
+                l.matched_two_legs,
+                l.rmse_two_legs_m
             );
         }
         println!(

@@ -21,8 +21,8 @@ use super::{DefaultLidarTracker, background_of};
 use crate::TrackerError;
 use quarry_cloud::scan::BeamTable;
 use quarry_core::{
-    BackgroundModel, BeamLabel, CoreError, FrameIndex, MultiTargetTracker, Point2, PolarScan, Pose2,
-    ScanGeometry, Stamp, TimeUs,
+    BackgroundModel, BeamLabel, CoreError, FrameIndex, MultiTargetTracker, Point2, PolarScan,
+    Pose2, ScanGeometry, Stamp, TimeUs,
 };
 use std::time::Instant;
 
@@ -238,7 +238,9 @@ pub fn parse_legs_csv(text: &str) -> Result<Vec<LabelledPerson>, TrackerError> {
         };
         let stamp = num(0)?;
         let (x, y) = (num(2)?, num(3)?);
-        let e = acc.entry((stamp * 1e6).round() as i64).or_insert((0.0, 0.0, 0));
+        let e = acc
+            .entry((stamp * 1e6).round() as i64)
+            .or_insert((0.0, 0.0, 0));
         e.0 += x;
         e.1 += y;
         e.2 += 1;
@@ -358,9 +360,8 @@ mod tests {
     #[test]
     fn backwards_gaps_and_bad_scans_are_counted() {
         let g = geom();
-        let mk = |t: i64| {
-            PolarScan::try_new(SensorId(0), 0, TimeUs(t), vec![5000; 181], g).unwrap()
-        };
+        let mk =
+            |t: i64| PolarScan::try_new(SensorId(0), 0, TimeUs(t), vec![5000; 181], g).unwrap();
         let mut scans: Vec<PolarScan> = (0..100).map(|k| mk(k * 100_000)).collect();
         scans.insert(50, mk(1_000_000)); // backwards
         scans.push(mk(20_000_000)); // gap
