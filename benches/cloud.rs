@@ -151,6 +151,7 @@ fn icp(c: &mut Criterion) {
                 ..Icp2d::contour()
             },
         ),
+        ("contour_point_to_line", Icp2d::contour_point_to_line()),
         ("points_faithful", Icp2d::default()),
         (
             "points_peer_settings",

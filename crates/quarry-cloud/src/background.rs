@@ -97,6 +97,81 @@ pub fn region_constraint(
     Ok(out)
 }
 
+/// [`region_constraint`] for the points of one scan in the sensor frame, beam `n` at angle
+/// `angle_min + n·angle_increment` (same result, without a kd-tree).
+///
+/// A point at range `r` from the sensor is farther than `r·sin|Δφ|` from any point whose beam
+/// is `Δφ` away (`r` beyond 90°), so only the beams within `asin(δ/r)` of it (and, for fields of
+/// view near 360°, those within that angle across the wrap) can be neighbours; points closer
+/// than δ to the sensor are compared with every beam. Cost: about 2·δ/(r·Δφ) distance checks
+/// per candidate instead of a kd-tree build and query.
+pub fn region_constraint_scan(
+    points: &[Option<Point2>],
+    candidate: &[bool],
+    delta: f64,
+    angle_increment: f64,
+) -> Result<Vec<bool>> {
+    quarry_core::ensure_len(candidate.len(), points.len(), "candidate flags")?;
+    if !(delta.is_finite() && delta >= 0.0) {
+        return Err(CoreError::invalid("delta", "must be finite and >= 0").into());
+    }
+    let inc = angle_increment.abs();
+    if !(inc.is_finite() && inc > 0.0) {
+        return Err(CoreError::invalid("angle_increment", "must be finite and non-zero").into());
+    }
+    let n_beams = points.len();
+    let d2max = delta * delta;
+    // beams per full turn (wrap-around distance in beam indices)
+    let per_turn = std::f64::consts::TAU / inc;
+    let mut out = vec![false; n_beams];
+    for n in 0..n_beams {
+        if !candidate[n] {
+            continue;
+        }
+        let Some(p) = points[n] else { continue };
+        let r = p.x.hypot(p.y);
+        let w = if r > delta {
+            // +1 beam against rounding of the angles
+            ((delta / r).asin() / inc).floor() + 1.0
+        } else {
+            f64::INFINITY
+        };
+        let (mut ns, mut nd) = (0usize, 0usize);
+        let mut visit = |j: usize| {
+            if j == n {
+                return;
+            }
+            if let Some(q) = points[j]
+                && (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y) <= d2max
+            {
+                if candidate[j] {
+                    ns += 1;
+                } else {
+                    nd += 1;
+                }
+            }
+        };
+        let wrap_from = per_turn - w; // |n − j| ≥ this is within w across the wrap
+        if !w.is_finite() || 2.0 * w + 1.0 >= n_beams as f64 || wrap_from <= w {
+            (0..n_beams).for_each(&mut visit);
+        } else {
+            let wi = w as usize;
+            (n.saturating_sub(wi)..=(n + wi).min(n_beams - 1)).for_each(&mut visit);
+            if wrap_from < n_beams as f64 {
+                let k = wrap_from.ceil() as usize;
+                if n >= k {
+                    (0..=n - k).for_each(&mut visit);
+                }
+                if n + k < n_beams {
+                    (n + k..n_beams).for_each(&mut visit);
+                }
+            }
+        }
+        out[n] = (ns + nd == 0) || ns > nd;
+    }
+    Ok(out)
+}
+
 /// How σ is chosen per beam.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SigmaMode {
@@ -121,6 +196,14 @@ pub struct LongTermConfig {
     pub alpha: f64,
     /// Relearn after this many consecutive static scans away from `b_n` (`T_relearn` = 2 s = 80).
     pub relearn_scans: u32,
+    /// Update `b_n` only from static readings consistent with it (`|d − b_n| ≤ τ_g(d)`).
+    ///
+    /// The spec's literal update follows every static-labelled reading, including readings on a
+    /// slow or briefly still person that pass (5)–(6); `b_n` then drifts toward people and the
+    /// override misses the wall when it reappears (ghost tracks). The spec's own relearn rule
+    /// covers genuine background changes, so the update may be restricted to readings that
+    /// already agree with `b_n` (default `true`; `false` reproduces the ungated rule).
+    pub gated_update: bool,
 }
 
 impl Default for LongTermConfig {
@@ -130,6 +213,7 @@ impl Default for LongTermConfig {
             min_valid_fraction: 0.5,
             alpha: 0.02,
             relearn_scans: 80,
+            gated_update: true,
         }
     }
 }
@@ -338,7 +422,12 @@ impl ChiSquareBackground {
             candidate[n] = d2 < ln_th && static_probability(d2) > self.cfg.p_threshold;
         }
         let mut is_static = if self.cfg.region_constraint {
-            region_constraint(&points, &candidate, self.cfg.region_radius)?
+            region_constraint_scan(
+                &points,
+                &candidate,
+                self.cfg.region_radius,
+                self.table.geometry().angle_increment,
+            )?
         } else {
             candidate.clone()
         };
@@ -433,7 +522,9 @@ impl ChiSquareBackground {
             {
                 self.background[n] = Some(mean);
                 self.static_run[n] = 0;
-            } else if let Some(b) = self.background[n] {
+            } else if let Some(b) = self.background[n]
+                && (!lt.gated_update || (d - b).abs() <= (3.0 * sigma_d(d)).max(0.03))
+            {
                 self.background[n] = Some((1.0 - lt.alpha) * b + lt.alpha * d);
             }
         }
@@ -735,6 +826,86 @@ mod tests {
                 until >= 1 && until <= max_scans,
                 "static again after {until} scans (max {max_scans})"
             );
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn region_scan_equals_kd_version(
+            n_beams in 2usize..200,
+            fov_deg in 10.0f64..360.0,
+            seed in 0u64..1000,
+            delta in 0.05f64..1.0,
+        ) {
+            let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+            let inc = fov_deg.to_radians() / n_beams as f64;
+            let amin = -fov_deg.to_radians() / 2.0;
+            let u = rand_distr::Uniform::new(0.0f64, 1.0).unwrap();
+            // walls with steps, a few invalid beams, some points near the sensor
+            let mut r = 0.1 + 5.0 * u.sample(&mut rng);
+            let mut pts = Vec::new();
+            let mut cand = Vec::new();
+            for k in 0..n_beams {
+                if u.sample(&mut rng) < 0.1 {
+                    r = 0.05 + 6.0 * u.sample(&mut rng);
+                }
+                r += 0.02 * (u.sample(&mut rng) - 0.5);
+                let a = amin + inc * k as f64;
+                pts.push((u.sample(&mut rng) > 0.05).then(|| Point2::new(r * a.cos(), r * a.sin())));
+                cand.push(u.sample(&mut rng) < 0.7 && pts[k].is_some());
+            }
+            let a = region_constraint(&pts, &cand, delta).unwrap();
+            let b = region_constraint_scan(&pts, &cand, delta, inc).unwrap();
+            prop_assert_eq!(a, b);
+        }
+    }
+
+    #[test]
+    fn gated_update_keeps_background_under_a_still_person() {
+        // wall at 5 m; a person stands at 3 m for 60 scans (static labels after the window
+        // fills, but < T_relearn), then leaves. Gated: b_n stays on the wall and the wall is
+        // static on the first scan. Ungated: b_n drifts toward 3 m and the wall comes back
+        // dynamic.
+        for (gated, expect_static) in [(true, true), (false, false)] {
+            let lt = LongTermConfig {
+                warm_scans: 100,
+                gated_update: gated,
+                ..LongTermConfig::default()
+            };
+            let mut bg = ChiSquareBackground::new(
+                &one_beam_geometry(),
+                ChiSquareConfig {
+                    region_constraint: false,
+                    long_term: Some(lt),
+                    ..ChiSquareConfig::default()
+                },
+            )
+            .unwrap();
+            let mut k = 0u32;
+            let mut next = |bg: &mut ChiSquareBackground, mm: u16| {
+                k += 1;
+                bg.classify_scan(&scan1(k, mm)).unwrap()[0]
+            };
+            for _ in 0..150 {
+                next(&mut bg, 5000);
+            }
+            let mut statics = 0;
+            for _ in 0..60 {
+                if next(&mut bg, 3000) == BeamLabel::Static {
+                    statics += 1;
+                }
+            }
+            assert!(
+                statics >= 15,
+                "the still person became static {statics} times"
+            );
+            let b = bg.long_term_background()[0].unwrap();
+            if gated {
+                assert!((b - 5.0).abs() < 1e-9, "gated b_n moved to {b}");
+            } else {
+                assert!(b < 4.9, "ungated b_n stayed at {b}");
+            }
+            assert_eq!(next(&mut bg, 5000) == BeamLabel::Static, expect_static);
         }
     }
 

@@ -124,6 +124,21 @@ pub enum ModelShape {
     ClosedContour,
 }
 
+/// The error each ICP step minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Metric {
+    /// Point-to-point: the closed-form rigid solve of [`rigid_2d`] over the pairs (default; the
+    /// spec's and the paper's ICP).
+    #[default]
+    PointToPoint,
+    /// Point-to-line (Censi 2008; Chen & Medioni 1992): each data point's distance to the
+    /// tangent line of the closest contour segment, minimised by one linearised 3×3
+    /// Gauss–Newton step per iteration. Needs `DataToModel` and `ClosedContour` (the segments
+    /// give the lines). It does not slide along a partial arc as point-to-point ICP does, so it
+    /// converges in a few iterations.
+    PointToLine,
+}
+
 /// Residual-threshold trimming schedule (spec 003 §2.6, Zhang 1994).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trim {
@@ -171,6 +186,8 @@ pub struct Icp2d {
     /// With `ModelToData`, fail with `TooFewPoints` when there are fewer data points than model
     /// points (the paper's exit; `literal` preset).
     pub require_full_model: bool,
+    /// Point-to-point (default) or point-to-line steps.
+    pub metric: Metric,
 }
 
 impl Default for Icp2d {
@@ -185,6 +202,7 @@ impl Default for Icp2d {
             delta_stop: 1e-4,
             max_iter: 30,
             require_full_model: false,
+            metric: Metric::PointToPoint,
         }
     }
 }
@@ -244,6 +262,18 @@ impl Icp2d {
         }
     }
 
+    /// The contour matcher with point-to-line steps ([`Metric::PointToLine`]): data→model onto
+    /// the closed contour, trimmed 0.25 → 0.10 m, stop at ΔRMS < 1e-5 m or 30 iterations.
+    pub fn contour_point_to_line() -> Self {
+        Self {
+            model_shape: ModelShape::ClosedContour,
+            metric: Metric::PointToLine,
+            rms_stop: 0.0,
+            delta_stop: 1e-5,
+            ..Self::default()
+        }
+    }
+
     /// The `literal` preset: model→data, no trimming, `TooFewPoints` when the cluster is smaller
     /// than the model.
     pub fn literal() -> Self {
@@ -256,6 +286,16 @@ impl Icp2d {
     }
 
     fn validate(&self) -> Result<()> {
+        if self.metric == Metric::PointToLine
+            && (self.direction != Correspondence::DataToModel
+                || self.model_shape != ModelShape::ClosedContour)
+        {
+            return Err(CoreError::invalid(
+                "metric",
+                "point-to-line needs DataToModel correspondences and a ClosedContour model",
+            )
+            .into());
+        }
         if !(self.max_corr_dist > 0.0) {
             return Err(CoreError::invalid("max_corr_dist", "must be positive").into());
         }
@@ -336,6 +376,16 @@ impl Icp2d {
                 needed: model.len(),
                 got: data.len(),
             });
+        }
+        if self.metric == Metric::PointToLine {
+            if model.len() < 3 {
+                return Err(CloudError::TooFewPoints {
+                    what: "point-to-line contour model",
+                    needed: 3,
+                    got: model.len(),
+                });
+            }
+            return Ok(self.register_point_to_line(model, data, init));
         }
         let contour = self.direction == Correspondence::DataToModel
             && self.model_shape == ModelShape::ClosedContour
@@ -456,6 +506,147 @@ impl Icp2d {
             out.r = r;
         }
     }
+}
+
+impl Icp2d {
+    /// Point-to-line ICP on a closed contour (inputs already validated and finite).
+    fn register_point_to_line(&self, model: &[Point2], data: &[Point2], init: Pose2) -> RegResult {
+        let mut pose = init;
+        let mut e_prev = f64::INFINITY;
+        let mut iters = 0;
+        let mut converged = false;
+        for k in 0..self.max_iter {
+            let tau = self.tau(k);
+            let (s, c) = pose.theta.sin_cos();
+            let mut a = [[0.0f64; 3]; 3];
+            let mut g = [0.0f64; 3];
+            let (mut se, mut n_used) = (0.0, 0usize);
+            for o in data {
+                let (dx, dy) = (o.x - pose.x, o.y - pose.y);
+                let q = Point2::new(c * dx + s * dy, -s * dx + c * dy);
+                let (cp, d2, n) = closest_with_normal(model, &q);
+                if d2 > tau * tau {
+                    continue;
+                }
+                let r = (q.x - cp.x) * n.0 + (q.y - cp.y) * n.1;
+                let j = [q.x * n.1 - q.y * n.0, n.0, n.1];
+                for u in 0..3 {
+                    for v in 0..3 {
+                        a[u][v] += j[u] * j[v];
+                    }
+                    g[u] += j[u] * r;
+                }
+                se += d2;
+                n_used += 1;
+            }
+            if n_used < 3 {
+                break;
+            }
+            let e = (se / n_used as f64).sqrt();
+            if e < self.rms_stop || (e_prev - e).abs() < self.delta_stop {
+                converged = true;
+                break;
+            }
+            e_prev = e;
+            let Some(d) = solve3_damped(a, [-g[0], -g[1], -g[2]]) else {
+                break;
+            };
+            // data in the model frame moves by q' = R(dθ) q + (dx, dy); the model pose moves
+            // by the inverse
+            let theta = pose.theta - d[0];
+            let (s2, c2) = theta.sin_cos();
+            pose = Pose2::new(
+                pose.x - (c2 * d[1] - s2 * d[2]),
+                pose.y - (s2 * d[1] + c2 * d[2]),
+                theta,
+            );
+            iters = k + 1;
+            if d[0].abs() < 1e-10 && d[1].hypot(d[2]) < 1e-10 {
+                converged = true;
+                break;
+            }
+        }
+        let tau = self.tau(iters);
+        let (s, c) = pose.theta.sin_cos();
+        let (mut se, mut n_used) = (0.0, 0usize);
+        for o in data {
+            let (dx, dy) = (o.x - pose.x, o.y - pose.y);
+            let q = Point2::new(c * dx + s * dy, -s * dx + c * dy);
+            let (_, d2, _) = closest_with_normal(model, &q);
+            if d2 <= tau * tau {
+                se += d2;
+                n_used += 1;
+            }
+        }
+        RegResult {
+            pose,
+            rms: if n_used >= 3 {
+                (se / n_used as f64).sqrt()
+            } else {
+                f64::INFINITY
+            },
+            inliers: n_used,
+            iters,
+            converged,
+        }
+    }
+}
+
+/// Closest point to `q` on the closed polyline `model` (nearest vertex, then its two segments),
+/// its squared distance, and the unit normal of that segment.
+#[inline]
+fn closest_with_normal(model: &[Point2], q: &Point2) -> (Point2, f64, (f64, f64)) {
+    let k = model.len();
+    let mut j = 0;
+    let mut best = f64::INFINITY;
+    for (i, m) in model.iter().enumerate() {
+        let d2 = (m.x - q.x) * (m.x - q.x) + (m.y - q.y) * (m.y - q.y);
+        if d2 < best {
+            best = d2;
+            j = i;
+        }
+    }
+    let mut out = (model[j], f64::INFINITY, (0.0, 0.0));
+    for (a, b) in [(j, (j + 1) % k), ((j + k - 1) % k, j)] {
+        let (p, d2) = closest_on_segment(&model[a], &model[b], q);
+        if d2 < out.1 {
+            let (ux, uy) = (model[b].x - model[a].x, model[b].y - model[a].y);
+            let l = ux.hypot(uy);
+            let n = if l > 0.0 {
+                (-uy / l, ux / l)
+            } else {
+                (0.0, 0.0)
+            };
+            out = (p, d2, n);
+        }
+    }
+    out
+}
+
+/// Solves `(A + λI) x = b` for a symmetric 3×3 `A` (λ = 1e-9·trace, against an unobservable
+/// direction such as the rotation of a circle); `None` if singular or non-finite.
+fn solve3_damped(mut a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let lambda = 1e-9 * (a[0][0] + a[1][1] + a[2][2]) + 1e-15;
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] += lambda;
+    }
+    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    if !(det.is_finite() && det.abs() > 0.0) {
+        return None;
+    }
+    let col = |k: usize| {
+        let mut m = a;
+        for i in 0..3 {
+            m[i][k] = b[i];
+        }
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let x = [col(0) / det, col(1) / det, col(2) / det];
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Closest point to `q` on segment `a`–`b` and its squared distance.
@@ -704,5 +895,71 @@ mod tests {
             "{r:?}"
         );
         assert_eq!(r.inliers, 36);
+    }
+
+    #[test]
+    fn point_to_line_recovers_noisy_partial_arcs() {
+        // 200 partial arcs (120-200 deg of the contour, 3 mm noise), start up to 8 cm / 12 deg
+        // off: the pose is recovered to 2 cm / 2 deg in >= 85 % of them (181/200 measured), in
+        // few iterations
+        // (with 1 cm noise the orientation of so small an ellipse is not observable to 2 deg:
+        // point-to-point ICP run to convergence misses by the same amounts)
+        let model = ellipse(72, 0.22, 0.13);
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
+        let u = rand_distr::Uniform::new(-1.0f64, 1.0).unwrap();
+        let noise = Normal::new(0.0, 0.003).unwrap();
+        let icp = Icp2d::contour_point_to_line();
+        let (mut ok, mut iters) = (0, 0);
+        for _ in 0..200 {
+            let truth = Pose2::new(
+                3.0 * u.sample(&mut rng),
+                2.0 * u.sample(&mut rng),
+                3.0 * u.sample(&mut rng),
+            );
+            let start = (36.0 + 36.0 * u.sample(&mut rng)).round() as usize;
+            let span = (30.0 + 10.0 * u.sample(&mut rng)).round() as usize;
+            let data: Vec<Point2> = (0..span)
+                .map(|i| {
+                    let p = truth.apply(&model[(start + i) % 72]);
+                    Point2::new(p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng))
+                })
+                .collect();
+            let init = Pose2::new(
+                truth.x + 0.08 * u.sample(&mut rng),
+                truth.y + 0.08 * u.sample(&mut rng),
+                truth.theta + 0.21 * u.sample(&mut rng),
+            );
+            let r = icp.register(&model, &data, init).unwrap();
+            iters += r.iters;
+            let dth = quarry_core::wrap_angle(r.pose.theta - truth.theta).abs();
+            let dt = (r.pose.x - truth.x).hypot(r.pose.y - truth.y);
+            let good = dth < 2f64.to_radians() && dt < 0.02 && r.rms < 0.02;
+            ok += usize::from(good);
+        }
+        eprintln!(
+            "point-to-line: {ok}/200, mean iterations {}",
+            f64::from(iters) / 200.0
+        );
+        assert!(ok >= 170, "recovered {ok}/200");
+        assert!(
+            iters < 200 * 12,
+            "mean iterations {}",
+            f64::from(iters) / 200.0
+        );
+    }
+
+    #[test]
+    fn point_to_line_needs_a_contour() {
+        let model = ellipse(36, 0.22, 0.13);
+        let bad = Icp2d {
+            model_shape: ModelShape::Points,
+            ..Icp2d::contour_point_to_line()
+        };
+        assert!(bad.register(&model, &model, Pose2::identity()).is_err());
+        assert!(
+            Icp2d::contour_point_to_line()
+                .register(&model[..2], &model, Pose2::identity())
+                .is_err()
+        );
     }
 }

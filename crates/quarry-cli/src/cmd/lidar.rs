@@ -8,8 +8,11 @@ use crate::output::{CmdResult, Output};
 use crate::progress;
 use clap::Args;
 use plotters::prelude::*;
+use quarry_cloud::csv_scans::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_core::{Point2, Pose2, TimeUs};
-use quarry_sim::lidar_room::{GtWriter, Obstacle, Room, ScannerSim, Scenario, SpeedBand};
+use quarry_sim::lidar_room::{
+    ClockProfile, GtWriter, NetworkModel, Obstacle, Room, ScannerSim, Scenario, SpeedBand,
+};
 use quarry_trackers::lidar_people::{
     self, EvalFrame, LidarPeopleConfig, LidarTrack, Paper003Metrics, Preset, RoomRun,
 };
@@ -64,6 +67,30 @@ pub struct LidarArgs {
     /// Output directory (tracks.csv, tracks_mot.txt, gt_people.csv, plot.png, metrics.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Simulated network: ideal, wifi (default) or bad.
+    #[arg(long)]
+    pub network: Option<String>,
+    /// Simulated clocks: synced (default), skewed, skewed_broadcast or skewed_nosync.
+    #[arg(long)]
+    pub clock: Option<String>,
+    /// Recorded scans of one scanner (CSV `stamp_s,r0..r{N-1}`, metres, inf/nan = no return)
+    /// instead of the simulated room.
+    #[arg(long)]
+    pub scans: Option<PathBuf>,
+    /// Scanner geometry for --scans: a scan_meta.json (default: scan_meta.json beside the CSV).
+    #[arg(long)]
+    pub meta: Option<PathBuf>,
+    /// Entry of --meta (default: the CSV's file stem without `_scans`).
+    #[arg(long)]
+    pub meta_key: Option<String>,
+    /// Labelled leg centroids for --scans (`stamp_s,leg_index,x_m,y_m,frame_id`): prints the
+    /// person position error (RMSE, nearest track within d_match).
+    #[arg(long)]
+    pub legs: Option<PathBuf>,
+    /// With --scans: skip (and count) malformed rows and rows whose stamp goes backwards instead
+    /// of stopping at the first one.
+    #[arg(long)]
+    pub skip_bad_rows: bool,
 }
 
 /// The JSON summary of a run.
@@ -131,8 +158,30 @@ pub fn run_sim_band(
     cfg: &LidarPeopleConfig,
     out: &Output,
 ) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), String> {
+    run_sim_variant(band, people, frames, seed, cfg, out, None, None)
+}
+
+/// [`run_sim_band`] with an optional network model and clock profile (scenario defaults
+/// otherwise: `wifi`, `synced`).
+#[allow(clippy::too_many_arguments)]
+pub fn run_sim_variant(
+    band: SpeedBand,
+    people: u32,
+    frames: usize,
+    seed: u64,
+    cfg: &LidarPeopleConfig,
+    out: &Output,
+    network: Option<NetworkModel>,
+    clock: Option<ClockProfile>,
+) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), String> {
     let duration = 7.0 + frames as f64 * cfg.frame_period_s + 0.3;
-    let sc = Scenario::band(band, people, seed).with_duration(duration);
+    let mut sc = Scenario::band(band, people, seed).with_duration(duration);
+    if let Some(n) = network {
+        sc = sc.with_network(n);
+    }
+    if let Some(c) = clock {
+        sc = sc.with_clock(c);
+    }
     let pb = if frames >= 400 {
         progress::bar(out, 1000, "lidar sim")
     } else {
@@ -178,12 +227,35 @@ pub fn run(args: &LidarArgs, out: &Output) -> CmdResult {
 
 fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
     let cfg = load_config(args)?;
+    if let Some(scans) = &args.scans {
+        return run_recorded_cmd(args, scans, &cfg, output);
+    }
     let band = parse_band(&args.band)?;
     if args.frames == 0 {
         return Err("--frames must be > 0".into());
     }
-    let (summary, run, window, sc) =
-        run_sim_band(band, args.people, args.frames, args.seed, &cfg, output)?;
+    let network = args
+        .network
+        .as_deref()
+        .map(NetworkModel::parse)
+        .transpose()
+        .map_err(|e| e.to_string())?;
+    let clock = args
+        .clock
+        .as_deref()
+        .map(ClockProfile::parse)
+        .transpose()
+        .map_err(|e| e.to_string())?;
+    let (summary, run, window, sc) = run_sim_variant(
+        band,
+        args.people,
+        args.frames,
+        args.seed,
+        &cfg,
+        output,
+        network,
+        clock,
+    )?;
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
         write_tracks(&out.join("tracks.csv"), &run.tracks)?;
@@ -218,6 +290,180 @@ fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
                 out.display()
             );
         }
+    }
+    Ok(())
+}
+
+/// The JSON summary of a `--scans` run.
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordedSummary {
+    /// Preset.
+    pub preset: String,
+    /// Input file.
+    pub scans_file: String,
+    /// Beams per scan.
+    pub n_beams: u32,
+    /// Scans processed.
+    pub frames: usize,
+    /// CSV rows skipped as malformed (with --skip-bad-rows).
+    pub skipped_bad_rows: u64,
+    /// CSV rows or scans skipped because their stamp went backwards.
+    pub skipped_backwards: u64,
+    /// Beams marked invalid (NaN, inf, out of range).
+    pub invalid_beams: u64,
+    /// Scans used only to fill the background window (not tracked).
+    pub warm_up_scans: usize,
+    /// Gaps longer than 3 scan periods (the scanner stopped sending).
+    pub gaps: usize,
+    /// Longest interval between scans, seconds.
+    pub longest_gap_s: f64,
+    /// Distinct track ids.
+    pub distinct_tracks: usize,
+    /// Scans with 0, 1, 2, ... tracks.
+    pub track_count_histogram: Vec<usize>,
+    /// Tracks living at least 1 s.
+    pub tracks_over_1s: usize,
+    /// Position error against --legs, if given.
+    pub labelled: Option<lidar_people::LabelledError>,
+    /// Tracker time per scan, ms.
+    pub ms_per_frame: f64,
+    /// Background time per scan, ms.
+    pub client_ms_per_scan: f64,
+}
+
+fn run_recorded_cmd(
+    args: &LidarArgs,
+    scans: &Path,
+    cfg: &LidarPeopleConfig,
+    output: &Output,
+) -> Result<(), String> {
+    let stem = scans
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .ok_or_else(|| format!("{}: no file name", scans.display()))?;
+    let key = args
+        .meta_key
+        .clone()
+        .unwrap_or_else(|| stem.trim_end_matches("_scans").to_string());
+    let meta = args.meta.clone().unwrap_or_else(|| {
+        scans
+            .parent()
+            .unwrap_or_else(|| Path::new("."))
+            .join("scan_meta.json")
+    });
+    let meta_text =
+        std::fs::read_to_string(&meta).map_err(|e| format!("{}: {e}", meta.display()))?;
+    let geometry =
+        parse_scan_meta(&meta_text, &key).map_err(|e| format!("{}: {e}", meta.display()))?;
+    let policy = if args.skip_bad_rows {
+        RowPolicy::Skip
+    } else {
+        RowPolicy::Error
+    };
+    let opts = ScanCsvOptions {
+        bad_rows: policy,
+        backwards: policy,
+        ..ScanCsvOptions::default()
+    };
+    let (polar, stats) =
+        read_scans(scans, geometry, opts).map_err(|e| format!("{}: {e}", scans.display()))?;
+    if polar.is_empty() {
+        return Err(format!("{}: no scans", scans.display()));
+    }
+    let run = lidar_people::run_recorded(cfg, &geometry, Pose2::default(), &polar, 3.0)
+        .map_err(|e| e.to_string())?;
+    let labelled = match &args.legs {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            let labels =
+                lidar_people::parse_legs_csv(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+            Some(
+                lidar_people::score_labelled(&run, &labels, cfg.d_match)
+                    .map_err(|e| e.to_string())?,
+            )
+        }
+        None => None,
+    };
+    let min_scans = (1.0 / geometry.scan_period).ceil() as usize;
+    let n = run.frames.len().max(1) as f64;
+    let summary = RecordedSummary {
+        preset: cfg.preset.name().into(),
+        scans_file: scans.display().to_string(),
+        n_beams: geometry.n_beams,
+        frames: run.frames.len(),
+        skipped_bad_rows: stats.skipped_bad_rows,
+        skipped_backwards: stats.skipped_backwards + run.skipped_backwards as u64,
+        invalid_beams: stats.invalid_beams,
+        warm_up_scans: run.warm_up_scans,
+        gaps: run.gaps,
+        longest_gap_s: run.longest_gap_s,
+        distinct_tracks: run.distinct_tracks(),
+        track_count_histogram: run.track_count_histogram(),
+        tracks_over_1s: run
+            .track_lifetimes()
+            .iter()
+            .filter(|(_, l)| *l >= min_scans)
+            .count(),
+        labelled,
+        ms_per_frame: 1e3 * run.tracker_seconds / n,
+        client_ms_per_scan: 1e3 * run.client_seconds / n,
+    };
+    if let Some(out) = &args.out {
+        std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        let rows: Vec<(u64, TimeUs, Vec<LidarTrack>)> = run
+            .frames
+            .iter()
+            .enumerate()
+            .map(|(k, f)| (k as u64, f.t, f.tracks.clone()))
+            .collect();
+        write_tracks(&out.join("tracks.csv"), &rows)?;
+        write_mot(&out.join("tracks_mot.txt"), &rows)?;
+        let js = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+        std::fs::write(out.join("metrics.json"), js).map_err(|e| e.to_string())?;
+    }
+    if output.json {
+        println!(
+            "{}",
+            serde_json::to_string(&summary).map_err(|e| e.to_string())?
+        );
+    } else {
+        println!(
+            "quarry lidar --scans {}: preset {}, {} beams, {} scans ({} warm-up scans not tracked)",
+            summary.scans_file,
+            summary.preset,
+            summary.n_beams,
+            summary.frames,
+            summary.warm_up_scans
+        );
+        println!(
+            "  skipped: {} malformed rows, {} backwards stamps; {} invalid beams; {} gaps (longest {:.3} s)",
+            summary.skipped_bad_rows,
+            summary.skipped_backwards,
+            summary.invalid_beams,
+            summary.gaps,
+            summary.longest_gap_s
+        );
+        println!(
+            "  tracks: {} distinct ids, {} living >= 1 s; scans with 0,1,2,.. tracks: {:?}",
+            summary.distinct_tracks, summary.tracks_over_1s, summary.track_count_histogram
+        );
+        if let Some(l) = &summary.labelled {
+            println!(
+                "  vs labelled legs: {}/{} scans matched within {} m, RMSE {:.3} m, mean {:.3} m, median {:.3} m; two-leg labels: {} matched, RMSE {:.3} m",
+                l.matched,
+                l.labelled,
+                cfg.d_match,
+                l.rmse_m,
+                l.mean_m,
+                l.median_m,
+                l.matched_two_legs,
+                l.rmse_two_legs_m
+            );
+        }
+        println!(
+            "  tracker {:.3} ms per scan, background {:.3} ms per scan",
+            summary.ms_per_frame, summary.client_ms_per_scan
+        );
     }
     Ok(())
 }

@@ -12,6 +12,7 @@
 mod config;
 mod metrics;
 mod pipeline;
+mod recorded;
 mod tracker;
 
 pub use config::{LidarPeopleConfig, Preset};
@@ -21,6 +22,10 @@ pub use metrics::{
 pub use pipeline::{
     AssemblerFusion, ClientPipeline, DynamicScan, Fusion, RoomRun, RowSource, ServerPipeline,
     encode_dynamic, run_room, run_room_default,
+};
+pub use recorded::{
+    LabelledError, LabelledPerson, RecordedFrame, RecordedRun, parse_legs_csv, run_recorded,
+    score_labelled,
 };
 pub use tracker::{
     ContourDetector, ContourFit, FusedPoints, KfGnnTracker, LidarTrack, Table1Tracker,
@@ -159,6 +164,7 @@ pub fn background_of(
             min_valid_fraction: 0.5,
             alpha: cfg.alpha_b,
             relearn_scans: per_scan(cfg.t_relearn_s) as u32,
+            gated_update: cfg.bg_gated_update,
         }),
     };
     Ok(ChiSquareBackground::new(geometry, bc).map_err(CoreError::from)?)

@@ -1,0 +1,190 @@
+//! Lidar people tracking benchmarks (spec 003 §8), per fused frame of the simulated room:
+//!
+//! - `lidar_frame/end_to_end_replay/K`: K people walking (band_mid, seed 7, `ideal` network,
+//!   `synced` clocks). One iteration = 30 s = 610 fused frames of 50 ms replayed from a fresh
+//!   warmed-up state: per frame, the clients' background subtraction of every scan captured in
+//!   that period (3 scanners × 2 scans × 1081 beams), the wire encoding and the
+//!   `FrameAssembler` fusion, MeanShift, contour ICP and Table 1 (`faithful`). Divide by the
+//!   printed frame count for the time per fused frame.
+//! - `lidar_frame/server_replay/K`: the same frames, server only (fusion + MeanShift + ICP +
+//!   Table 1); the client messages are precomputed.
+//!
+//! The state comes from a 7 s warm-up (untimed setup; the background has learned the room and
+//! the tracks exist).
+//!
+//! `cargo bench --bench lidar -- --noplot`
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
+use quarry::cloud::background::ChiSquareBackground;
+use quarry::core::{Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
+use quarry::trackers::lidar_people::{
+    AssemblerFusion, ClientPipeline, DefaultLidarTracker, DynamicScan, LidarPeopleConfig,
+    ServerPipeline, background_of,
+};
+
+type Server = ServerPipeline<AssemblerFusion, DefaultLidarTracker>;
+
+struct State {
+    clients: Vec<ClientPipeline<ChiSquareBackground>>,
+    server: Server,
+}
+
+fn scenario(people: u32) -> Scenario {
+    Scenario::band(SpeedBand::Mid, people, 7)
+        .with_network(NetworkModel::ideal())
+        .with_clock(ClockProfile::Synced)
+        .with_duration(37.5)
+}
+
+/// Events after the warm-up, and a function making the warmed-up state.
+fn prepare(people: u32) -> (Vec<RoomEvent>, impl Fn() -> State) {
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = scenario(people);
+    let sensors: Vec<(SensorId, Pose2, ScanGeometry)> = sc
+        .scanners
+        .iter()
+        .map(|s| (s.id, s.pose, s.geometry))
+        .collect();
+    let fresh = move || {
+        let sc = scenario(people);
+        let clients = sc
+            .scanners
+            .iter()
+            .map(|s| ClientPipeline::new(s.id, background_of(&cfg, &s.geometry).unwrap()))
+            .collect();
+        let server = ServerPipeline::new(
+            AssemblerFusion::new(&sensors, &cfg).unwrap(),
+            DefaultLidarTracker::from_config(&cfg).unwrap(),
+            cfg.frame_period_s,
+        );
+        let mut st = State { clients, server };
+        let mut runner = Runner::new(sc).unwrap();
+        while let Some(ev) = runner.next_event().unwrap() {
+            let warm = match &ev {
+                RoomEvent::Scan(cs) => cs.t_true.0 < 7_000_000,
+                RoomEvent::Frame(g) => g.t.0 < 7_000_000,
+            };
+            if !warm {
+                break;
+            }
+            step(&mut st, &ev);
+        }
+        st
+    };
+    let mut runner = Runner::new(scenario(people)).unwrap();
+    let mut events = Vec::new();
+    while let Some(ev) = runner.next_event().unwrap() {
+        let t = match &ev {
+            RoomEvent::Scan(cs) => cs.t_true.0,
+            RoomEvent::Frame(g) => g.t.0,
+        };
+        if t >= 7_000_000 {
+            events.push(ev);
+        }
+    }
+    (events, fresh)
+}
+
+/// One event; returns whether it was a frame (the server polled and tracked).
+fn step(st: &mut State, ev: &RoomEvent) -> bool {
+    match ev {
+        RoomEvent::Scan(cs) => {
+            let msg = st.clients[cs.scanner]
+                .on_scan(&cs.scan, cs.clock_synced)
+                .unwrap();
+            for a in &cs.arrivals {
+                st.server.on_message(msg.clone(), *a).unwrap();
+            }
+            false
+        }
+        RoomEvent::Frame(g) => {
+            black_box(st.server.poll(g.t).unwrap());
+            true
+        }
+    }
+}
+
+fn frames(c: &mut Criterion) {
+    let mut g = c.benchmark_group("lidar_frame");
+    g.sample_size(10).measurement_time(Duration::from_secs(20));
+    for people in [5u32, 20] {
+        let (events, fresh) = prepare(people);
+        let n_frames = events
+            .iter()
+            .filter(|e| matches!(e, RoomEvent::Frame(_)))
+            .count();
+        // how many tracks the replay carries (printed once, for the record)
+        let mut st = fresh();
+        let mut n_tracks = 0usize;
+        for ev in &events {
+            if let RoomEvent::Frame(gt) = ev {
+                for (_, _, reps) in st.server.poll(gt.t).unwrap() {
+                    n_tracks += reps.len();
+                }
+            } else {
+                step(&mut st, ev);
+            }
+        }
+        eprintln!(
+            "lidar_frame/{people} people: one iteration = {n_frames} fused frames, {:.2} tracks per frame",
+            n_tracks as f64 / n_frames.max(1) as f64
+        );
+        // end to end: one iteration replays every frame from a fresh warmed-up state
+        g.bench_function(BenchmarkId::new("end_to_end_replay", people), |b| {
+            b.iter_batched(
+                &fresh,
+                |mut st| {
+                    for ev in &events {
+                        step(&mut st, ev);
+                    }
+                    st
+                },
+                BatchSize::PerIteration,
+            );
+        });
+        // server only: precompute the client messages of the replay
+        let mut st = fresh();
+        let msgs: Vec<Result<Vec<(DynamicScan, TimeUs)>, TimeUs>> = events
+            .iter()
+            .map(|ev| match ev {
+                RoomEvent::Scan(cs) => {
+                    let m = st.clients[cs.scanner]
+                        .on_scan(&cs.scan, cs.clock_synced)
+                        .unwrap();
+                    Ok(cs.arrivals.iter().map(|a| (m.clone(), *a)).collect())
+                }
+                RoomEvent::Frame(g) => Err(g.t),
+            })
+            .collect();
+        g.bench_function(BenchmarkId::new("server_replay", people), |b| {
+            b.iter_batched(
+                &fresh,
+                |mut st| {
+                    for m in &msgs {
+                        match m {
+                            Ok(list) => {
+                                for (d, a) in list {
+                                    st.server.on_message(d.clone(), *a).unwrap();
+                                }
+                            }
+                            Err(t) => {
+                                black_box(st.server.poll(*t).unwrap());
+                            }
+                        }
+                    }
+                    st
+                },
+                BatchSize::PerIteration,
+            );
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, frames);
+criterion_main!(benches);
