@@ -73,7 +73,13 @@ pub const DEMOS: &[(&str, RowFn)] = &[
     ("kf-cv", kf_cv),
     ("slamot", slamot),
     ("lidar-people", lidar_people),
+    ("rgbd-person", rgbd_person),
 ];
+
+/// The RGB-D person tracker (paper 001) on S1, patch tracker and whole-target baseline.
+fn rgbd_person(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
+    super::rgbd::demo_rows(args.seed)
+}
 
 /// The lidar people tracker (paper 003), `faithful` preset on band_mid.
 fn lidar_people(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
