@@ -16,7 +16,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("baseline", RgbdPersonConfig::whole_target_baseline()),
     ] {
         let (s, frames) = run_scenario(&scene, seed, &cfg, OdometryFeed::Exact, |_, _| {})?;
-        let last = frames.last().map(|f| format!("{:?}", f.state)).unwrap_or_default();
+        let last = frames
+            .last()
+            .map(|f| format!("{:?}", f.state))
+            .unwrap_or_default();
         println!(
             "{} {name:8} success@0.5 {:.3}  CLE {:.1} px  recovery {:?}  updates(vis<0.6) {}  last state {last}",
             id.name(),

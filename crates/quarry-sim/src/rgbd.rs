@@ -143,6 +143,9 @@ pub struct RgbdSample {
     pub truth: FrameTruth,
 }
 
+/// An actor in view: kind, position, normal towards the camera, lateral axis, distance walked.
+type ActiveActor = (Kind, [f64; 2], [f64; 2], [f64; 2], f64);
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     Target,
@@ -261,7 +264,11 @@ fn person_hit(s: f64, h: f64, d: f64) -> bool {
 fn shirt_target(s: f64, h: f64, alpha: f64) -> [f64; 3] {
     let c1 = hsv(210.0, 0.7, 0.8);
     let c2 = hsv(40.0, 0.6, 0.9);
-    let front = if (h / 0.10).floor() as i64 % 2 == 0 { c1 } else { c2 };
+    let front = if (h / 0.10).floor() as i64 % 2 == 0 {
+        c1
+    } else {
+        c2
+    };
     let back = if s.abs() <= 0.05 || (h / 0.20).floor() as i64 % 2 != 0 {
         c2
     } else {
@@ -360,7 +367,8 @@ impl RgbdScene {
             ScenarioId::S3Follow => {
                 for k in 1..n {
                     let p = robot[k - 1];
-                    let rel = p.apply_inverse(&nalgebra::Point2::new(tpos[k - 1][0], tpos[k - 1][1]));
+                    let rel =
+                        p.apply_inverse(&nalgebra::Point2::new(tpos[k - 1][0], tpos[k - 1][1]));
                     let d = rel.x.hypot(rel.y);
                     let v = (0.8 * (d - 2.5)).clamp(0.0, 1.0);
                     let w = (1.5 * rel.y.atan2(rel.x)).clamp(-0.6, 0.6);
@@ -391,7 +399,10 @@ impl RgbdScene {
             ScenarioId::S3Follow => {
                 let kc = 180usize.min(n - 1);
                 let r = robot[kc];
-                let mid = [(r.x + tpos[kc][0]) / 2.0, (r.y + tpos[kc][1]) / 2.0];
+                let mid = [
+                    f64::midpoint(r.x, tpos[kc][0]),
+                    f64::midpoint(r.y, tpos[kc][1]),
+                ];
                 let los = [tpos[kc][0] - r.x, tpos[kc][1] - r.y];
                 let l = los[0].hypot(los[1]).max(1e-9);
                 let perp = [-los[1] / l, los[0] / l];
@@ -416,11 +427,19 @@ impl RgbdScene {
         let mut rng = stream(seed, &[0]);
         let room = (
             -2.0,
-            if id == ScenarioId::S3Follow { 14.0 } else { 10.0 },
+            if id == ScenarioId::S3Follow {
+                14.0
+            } else {
+                10.0
+            },
         );
         let mut posters = Vec::new();
         for wall in 0..4u8 {
-            let (lo, hi) = if wall < 2 { (-5.0, 5.0) } else { (room.0, room.1) };
+            let (lo, hi) = if wall < 2 {
+                (-5.0, 5.0)
+            } else {
+                (room.0, room.1)
+            };
             for _ in 0..30 {
                 let c: f64 = rng.random_range(lo..hi);
                 let zc: f64 = rng.random_range(0.0..2.8);
@@ -444,7 +463,12 @@ impl RgbdScene {
         let marks = [(); 3].map(|()| {
             let s0: f64 = rng.random_range(-0.4..0.3);
             let h0: f64 = rng.random_range(0.1..1.5);
-            [s0, s0 + rng.random_range(0.05..0.15), h0, h0 + rng.random_range(0.05..0.25)]
+            [
+                s0,
+                s0 + rng.random_range(0.05..0.15),
+                h0,
+                h0 + rng.random_range(0.05..0.25),
+            ]
         });
         // odometry noise
         let mut orng = stream(seed, &[2]);
@@ -617,7 +641,7 @@ impl RgbdScene {
         let (w, h) = (intr.width, intr.height);
         let alpha = self.alpha(t);
         // active actors: (index, kind, position, normal n, lateral l, walked)
-        let acts: Vec<(Kind, [f64; 2], [f64; 2], [f64; 2], f64)> = self
+        let acts: Vec<ActiveActor> = self
             .actors
             .iter()
             .filter_map(|a| {
@@ -681,16 +705,22 @@ impl RgbdScene {
                         id = u8::try_from(ai + 1).unwrap_or(u8::MAX);
                         colour = match kind {
                             Kind::Panel => {
-                                let dark = self.marks.iter().any(|m| {
-                                    sl >= m[0] && sl <= m[1] && hh >= m[2] && hh <= m[3]
-                                });
+                                let dark = self
+                                    .marks
+                                    .iter()
+                                    .any(|m| sl >= m[0] && sl <= m[1] && hh >= m[2] && hh <= m[3]);
                                 if dark {
                                     [40.0, 35.0, 30.0]
                                 } else {
                                     add(hsv(30.0, 0.5, 0.6), vnoise(sl, hh, 9))
                                 }
                             }
-                            _ => person_colour(kind, sl, hh, if kind == Kind::Target { alpha } else { 0.0 }),
+                            _ => person_colour(
+                                kind,
+                                sl,
+                                hh,
+                                if kind == Kind::Target { alpha } else { 0.0 },
+                            ),
                         };
                     }
                 }
@@ -768,7 +798,11 @@ impl RgbdScene {
                 robot_pose: r,
                 delta,
                 delta_noisy: self.delta_noisy[k],
-                v: if k == 0 { 0.0 } else { delta.x.hypot(delta.y) / self.dt },
+                v: if k == 0 {
+                    0.0
+                } else {
+                    delta.x.hypot(delta.y) / self.dt
+                },
                 omega: if k == 0 { 0.0 } else { delta.theta / self.dt },
                 detector_off: self.id == ScenarioId::S6EgoRotation && (100..=130).contains(&k),
                 distractor: distr.bbox(),

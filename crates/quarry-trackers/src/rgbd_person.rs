@@ -32,11 +32,10 @@ use quarry_core::{
     StateEstimate, StateLayout, TimeUs, TrackId, TrackReport, TrackStatus,
 };
 use quarry_filter::{EgoCvModel, EgoModel, Ekf, FilterError, Position3};
-use quarry_vision::multicue::{
-    CandidateScore, PatchDescriptor, PatchModelConfig, PatchMultiCueModel, RgbdFeatures,
-    RgbdFrame,
-};
 use quarry_vision::VisionError;
+use quarry_vision::multicue::{
+    CandidateScore, PatchDescriptor, PatchModelConfig, PatchMultiCueModel, RgbdFeatures, RgbdFrame,
+};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -229,7 +228,9 @@ impl RgbdPersonConfig {
             if x.is_finite() && x > 0.0 {
                 Ok(())
             } else {
-                Err(RgbdError::Config(format!("{name} must be finite and > 0, got {x}")))
+                Err(RgbdError::Config(format!(
+                    "{name} must be finite and > 0, got {x}"
+                )))
             }
         };
         pos("c_base", self.c_base)?;
@@ -244,14 +245,19 @@ impl RgbdPersonConfig {
             }
         }
         if self.c_base > 1.0 {
-            return Err(RgbdError::Config(format!("c_base must be ≤ 1, got {}", self.c_base)));
+            return Err(RgbdError::Config(format!(
+                "c_base must be ≤ 1, got {}",
+                self.c_base
+            )));
         }
         for (n, x) in [
             ("accept_fraction", self.accept_fraction),
             ("severe_fraction", self.severe_fraction),
         ] {
             if !(0.0..=1.0).contains(&x) {
-                return Err(RgbdError::Config(format!("{n} must lie in [0, 1], got {x}")));
+                return Err(RgbdError::Config(format!(
+                    "{n} must lie in [0, 1], got {x}"
+                )));
             }
         }
         let k = self.intrinsics;
@@ -264,7 +270,9 @@ impl RgbdPersonConfig {
             ));
         }
         if !(0..=20).contains(&self.grid_i) || !(0..=20).contains(&self.grid_j) {
-            return Err(RgbdError::Config("grid_i / grid_j must be in 0..=20".into()));
+            return Err(RgbdError::Config(
+                "grid_i / grid_j must be in 0..=20".into(),
+            ));
         }
         if let Some(g) = self.gate_chi2
             && !(g.is_finite() && g > 0.0)
@@ -499,7 +507,9 @@ impl RgbdPersonTracker {
     fn dispatch_init(&mut self, stamp: Stamp, f: &RgbdFrame, bbox: BBox) -> Result<(), RgbdError> {
         self.check_frame(f)?;
         if !(bbox.is_valid() && bbox.w >= 1.0 && bbox.h >= 1.0) {
-            return Err(RgbdError::State(format!("init box {bbox:?} is empty or not finite")));
+            return Err(RgbdError::State(format!(
+                "init box {bbox:?} is empty or not finite"
+            )));
         }
         let (iw, ih) = (f64::from(f.width), f64::from(f.height));
         if bbox.right() <= 0.0 || bbox.bottom() <= 0.0 || bbox.left() >= iw || bbox.top() >= ih {
@@ -600,7 +610,10 @@ impl RgbdPersonTracker {
             Pose2::identity()
         };
         let (xp, pp) = {
-            let ekf = self.ekf.as_mut().ok_or_else(|| RgbdError::State("no MEKF".into()))?;
+            let ekf = self
+                .ekf
+                .as_mut()
+                .ok_or_else(|| RgbdError::State("no MEKF".into()))?;
             ekf.predict(&delta, dt)?;
             (*ekf.mean(), *ekf.cov())
         };
@@ -608,7 +621,9 @@ impl RgbdPersonTracker {
         let pred_pt = Vector3::new(xp[0], xp[1], xp[2]);
         let pred = self.project(&pred_pt);
         let z_pred = xp[0] - cfg.mount.t.x;
-        let gz = cfg.gate_floor_m.max(cfg.gate_sigmas * pp[(0, 0)].max(0.0).sqrt());
+        let gz = cfg
+            .gate_floor_m
+            .max(cfg.gate_sigmas * pp[(0, 0)].max(0.0).sqrt());
         #[allow(clippy::cast_possible_truncation)]
         self.model
             .as_mut()
@@ -616,7 +631,10 @@ impl RgbdPersonTracker {
             .set_depth_gate(Some((z_pred as f32, gz as f32)))?;
         let cands = self.candidates(pred);
         let feats = self.features(f, &cands)?;
-        let model = self.model.as_mut().ok_or_else(|| RgbdError::State("no model".into()))?;
+        let model = self
+            .model
+            .as_mut()
+            .ok_or_else(|| RgbdError::State("no model".into()))?;
         let mut described: Vec<(PatchDescriptor, CandidateScore)> = Vec::with_capacity(cands.len());
         for c in &cands {
             let d = model.describe_box(&feats, c)?;
@@ -679,14 +697,14 @@ impl RgbdPersonTracker {
         let mut selection: Option<(usize, DetectionTier, CandidateScore, bool)> = None;
         if !self.force_off {
             if cfg.baseline {
-                let items: Vec<(usize, f32)> =
-                    described.iter().enumerate().map(|(i, x)| (i, x.1.s)).collect();
-                selection = pick(&items).map(|i| {
-                    (i, DetectionTier::Overall, described[i].1.clone(), false)
-                });
-            } else if let Some((i, t, s)) =
-                tiers(&|i| Some(described[i].1.clone()), &all, 0)
-            {
+                let items: Vec<(usize, f32)> = described
+                    .iter()
+                    .enumerate()
+                    .map(|(i, x)| (i, x.1.s))
+                    .collect();
+                selection = pick(&items)
+                    .map(|i| (i, DetectionTier::Overall, described[i].1.clone(), false));
+            } else if let Some((i, t, s)) = tiers(&|i| Some(described[i].1.clone()), &all, 0) {
                 selection = Some((i, t, s, false));
             } else {
                 let t3_pool: Vec<usize> = all
@@ -708,7 +726,10 @@ impl RgbdPersonTracker {
             }
         }
         // optional NIS gate
-        let ekf = self.ekf.as_mut().ok_or_else(|| RgbdError::State("no MEKF".into()))?;
+        let ekf = self
+            .ekf
+            .as_mut()
+            .ok_or_else(|| RgbdError::State("no MEKF".into()))?;
         let meas_of = |i: usize| -> Option<Vector3<f64>> {
             let z = f64::from(described[i].0.z_star?);
             let b = cands[i];
@@ -785,7 +806,11 @@ impl RgbdPersonTracker {
             if let Some(b) = b {
                 self.prev = (b.cx, b.cy);
             }
-            bbox = if out_state == OcclusionState::Lost { None } else { b };
+            bbox = if out_state == OcclusionState::Lost {
+                None
+            } else {
+                b
+            };
             confirmed = false;
             tier = None;
             score = None;
@@ -936,8 +961,14 @@ pub fn run_scenario(
         .ok_or_else(|| TrackerError::Config("target not in view at frame 0".into()))?;
     let w = scene.intrinsics.width;
     let h = scene.intrinsics.height;
-    let frame0 = RgbdFrame::new(w, h, f0.rgb.clone(), f0.depth_m.clone(), quarry_core::EgoMotion::None)
-        .map_err(vis_err)?;
+    let frame0 = RgbdFrame::new(
+        w,
+        h,
+        f0.rgb.clone(),
+        f0.depth_m.clone(),
+        quarry_core::EgoMotion::None,
+    )
+    .map_err(vis_err)?;
     tr.init(Stamp::from_frame(0, scene.dt), &frame0, init)?;
     let mut recs = Vec::with_capacity(scene.len());
     for k in 1..scene.len() {
@@ -947,8 +978,14 @@ pub fn run_scenario(
             OdometryFeed::Exact => t.delta,
             OdometryFeed::Noisy => t.delta_noisy,
         };
-        let fr = RgbdFrame::new(w, h, smp.rgb.clone(), smp.depth_m.clone(), quarry_core::EgoMotion::Delta(d))
-            .map_err(vis_err)?;
+        let fr = RgbdFrame::new(
+            w,
+            h,
+            smp.rgb.clone(),
+            smp.depth_m.clone(),
+            quarry_core::EgoMotion::Delta(d),
+        )
+        .map_err(vis_err)?;
         tr.force_no_detection(t.detector_off);
         let t0 = std::time::Instant::now();
         let o = tr.step(Stamp::from_frame(k as u64, scene.dt), &fr)?;
@@ -991,7 +1028,13 @@ pub fn run_scenario(
 pub fn summarise(name: &str, seed: u64, recs: &[FrameRecord]) -> ScenarioSummary {
     let vis: Vec<&FrameRecord> = recs.iter().filter(|r| r.visibility >= 0.5).collect();
     let errs: Vec<f64> = vis.iter().filter_map(|r| r.centre_err).collect();
-    let mean = |v: &[f64]| if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 };
+    let mean = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    };
     let success = if vis.is_empty() {
         f64::NAN
     } else {
@@ -1034,7 +1077,9 @@ pub fn summarise(name: &str, seed: u64, recs: &[FrameRecord]) -> ScenarioSummary
             .filter(|r| {
                 matches!(
                     r.state,
-                    OcclusionState::FullOcclusion | OcclusionState::SevereOcclusion | OcclusionState::Lost
+                    OcclusionState::FullOcclusion
+                        | OcclusionState::SevereOcclusion
+                        | OcclusionState::Lost
                 )
             })
             .count() as f64
@@ -1047,16 +1092,27 @@ pub fn summarise(name: &str, seed: u64, recs: &[FrameRecord]) -> ScenarioSummary
         center_err_px: mean(&errs),
         success_rate_iou50: success,
         recovery_frames: worst.unwrap_or(Some(0)),
-        updates_low_visibility: recs.iter().filter(|r| r.visibility < 0.6).map(|r| r.n_updated).sum(),
+        updates_low_visibility: recs
+            .iter()
+            .filter(|r| r.visibility < 0.6)
+            .map(|r| r.n_updated)
+            .sum(),
         occlusion_recall: occ,
         rmse_3d_m: mean(&sq).sqrt(),
         distractor_frames: recs
             .iter()
             .filter(|r| r.iou_distractor > r.iou && r.iou_distractor > 0.0)
             .count(),
-        lost_frames: recs.iter().filter(|r| r.state == OcclusionState::Lost).count(),
+        lost_frames: recs
+            .iter()
+            .filter(|r| r.state == OcclusionState::Lost)
+            .count(),
         blackout_end_err_px: recs.iter().find(|r| r.frame == 130).and_then(|r| {
-            if name.starts_with("s6") { r.centre_err } else { None }
+            if name.starts_with("s6") {
+                r.centre_err
+            } else {
+                None
+            }
         }),
         ms_per_frame: mean(&recs.iter().map(|r| r.ms).collect::<Vec<_>>()),
     }
@@ -1078,26 +1134,59 @@ mod tests {
         assert!(RgbdPersonConfig::from_toml("c_base = -1").is_err());
         assert!(RgbdPersonConfig::from_toml("c_base = [").is_err());
         let back = toml::to_string(&RgbdPersonConfig::paper()).unwrap();
-        assert_eq!(RgbdPersonConfig::from_toml(&back).unwrap(), RgbdPersonConfig::paper());
+        assert_eq!(
+            RgbdPersonConfig::from_toml(&back).unwrap(),
+            RgbdPersonConfig::paper()
+        );
     }
 
     #[test]
     fn bad_input_is_an_error() {
         let mut t = RgbdPersonTracker::new(RgbdPersonConfig::paper()).unwrap();
         let rgb = vec![100u8; 640 * 480 * 3];
-        let f = RgbdFrame::new(640, 480, rgb.clone(), quarry_core::Plane::new(640, 480, 0.0), quarry_core::EgoMotion::None).unwrap();
+        let f = RgbdFrame::new(
+            640,
+            480,
+            rgb.clone(),
+            quarry_core::Plane::new(640, 480, 0.0),
+            quarry_core::EgoMotion::None,
+        )
+        .unwrap();
         // step before init
         assert!(t.step(Stamp::from_frame(1, 0.1), &f).is_err());
         // all-zero depth
         let b = BBox::from_ltwh(300.0, 100.0, 80.0, 250.0);
         assert!(t.init(Stamp::from_frame(0, 0.1), &f, b).is_err());
         // zero-size / outside boxes
-        let f2 = RgbdFrame::new(640, 480, rgb, quarry_core::Plane::new(640, 480, 2.0), quarry_core::EgoMotion::None).unwrap();
-        assert!(t.init(Stamp::from_frame(0, 0.1), &f2, BBox { w: 0.0, ..b }).is_err());
-        assert!(t.init(Stamp::from_frame(0, 0.1), &f2, BBox { cx: 5000.0, ..b }).is_err());
-        assert!(t.init(Stamp::from_frame(0, 0.1), &f2, BBox { cx: f64::NAN, ..b }).is_err());
+        let f2 = RgbdFrame::new(
+            640,
+            480,
+            rgb,
+            quarry_core::Plane::new(640, 480, 2.0),
+            quarry_core::EgoMotion::None,
+        )
+        .unwrap();
+        assert!(
+            t.init(Stamp::from_frame(0, 0.1), &f2, BBox { w: 0.0, ..b })
+                .is_err()
+        );
+        assert!(
+            t.init(Stamp::from_frame(0, 0.1), &f2, BBox { cx: 5000.0, ..b })
+                .is_err()
+        );
+        assert!(
+            t.init(Stamp::from_frame(0, 0.1), &f2, BBox { cx: f64::NAN, ..b })
+                .is_err()
+        );
         // a small frame does not fit the intrinsics
-        let small = RgbdFrame::new(32, 32, vec![0; 32 * 32 * 3], quarry_core::Plane::new(32, 32, 2.0), quarry_core::EgoMotion::None).unwrap();
+        let small = RgbdFrame::new(
+            32,
+            32,
+            vec![0; 32 * 32 * 3],
+            quarry_core::Plane::new(32, 32, 2.0),
+            quarry_core::EgoMotion::None,
+        )
+        .unwrap();
         assert!(t.init(Stamp::from_frame(0, 0.1), &small, b).is_err());
         // a valid init on a flat wall, then a non-increasing stamp
         t.init(Stamp::from_frame(0, 0.1), &f2, b).unwrap();
@@ -1106,8 +1195,26 @@ mod tests {
         // the MEKF candidate coincides with the G1 centre on a static target: deduplicated
         assert!((45..=54).contains(&o.n_candidates), "{}", o.n_candidates);
         // RGB / depth size mismatch is refused by the frame constructor
-        assert!(RgbdFrame::new(640, 480, vec![0; 10], quarry_core::Plane::new(640, 480, 2.0), quarry_core::EgoMotion::None).is_err());
-        assert!(RgbdFrame::new(640, 480, vec![0; 640 * 480 * 3], quarry_core::Plane::new(640, 479, 2.0), quarry_core::EgoMotion::None).is_err());
+        assert!(
+            RgbdFrame::new(
+                640,
+                480,
+                vec![0; 10],
+                quarry_core::Plane::new(640, 480, 2.0),
+                quarry_core::EgoMotion::None
+            )
+            .is_err()
+        );
+        assert!(
+            RgbdFrame::new(
+                640,
+                480,
+                vec![0; 640 * 480 * 3],
+                quarry_core::Plane::new(640, 479, 2.0),
+                quarry_core::EgoMotion::None
+            )
+            .is_err()
+        );
     }
 
     proptest! {

@@ -4,6 +4,8 @@
 //! patch tracker vs baseline) is `#[ignore]`d: run it in release with
 //! `cargo test --release -p quarry-trackers --test rgbd_scenarios -- --ignored --nocapture`.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use quarry_sim::rgbd::{RgbdScene, ScenarioId};
 use quarry_trackers::rgbd_person::{OdometryFeed, RgbdPersonConfig, ScenarioSummary, run_scenario};
 
@@ -16,7 +18,12 @@ fn run(id: ScenarioId, seed: u64, cfg: &RgbdPersonConfig, odo: OdometryFeed) -> 
 
 #[test]
 fn s2_scale_one_seed() {
-    let s = run(ScenarioId::S2Scale, 0, &RgbdPersonConfig::paper(), OdometryFeed::Exact);
+    let s = run(
+        ScenarioId::S2Scale,
+        0,
+        &RgbdPersonConfig::paper(),
+        OdometryFeed::Exact,
+    );
     assert!(s.success_rate_iou50 >= 0.85, "{s:?}");
     assert!(s.center_err_px <= 10.0, "{s:?}");
 }
@@ -35,7 +42,11 @@ fn seeds(id: ScenarioId, cfg: &RgbdPersonConfig, odo: OdometryFeed) -> Vec<Scena
 #[test]
 #[ignore = "long protocol (5 seeds x 360 frames x 2 trackers); run in release"]
 fn s1_patch_vs_baseline() {
-    let p = seeds(ScenarioId::S1StaticOcclusion, &RgbdPersonConfig::paper(), OdometryFeed::Exact);
+    let p = seeds(
+        ScenarioId::S1StaticOcclusion,
+        &RgbdPersonConfig::paper(),
+        OdometryFeed::Exact,
+    );
     let b = seeds(
         ScenarioId::S1StaticOcclusion,
         &RgbdPersonConfig::whole_target_baseline(),

@@ -169,13 +169,22 @@ impl PatchModelConfig {
         self.hue_binner().validate()?;
         let bad = |name: &'static str, why: String| Err(CoreError::invalid(name, why).into());
         if !(1..=16).contains(&self.n) {
-            return bad("n", format!("patches per side must be in 1..=16, got {}", self.n));
+            return bad(
+                "n",
+                format!("patches per side must be in 1..=16, got {}", self.n),
+            );
         }
         if !(self.depth_bin_m.is_finite() && self.depth_bin_m > 0.0) {
-            return bad("depth_bin_m", format!("must be > 0, got {}", self.depth_bin_m));
+            return bad(
+                "depth_bin_m",
+                format!("must be > 0, got {}", self.depth_bin_m),
+            );
         }
         if self.depth_bins == 0 || self.depth_bins > 10_000 {
-            return bad("depth_bins", format!("must be in 1..=10000, got {}", self.depth_bins));
+            return bad(
+                "depth_bins",
+                format!("must be in 1..=10000, got {}", self.depth_bins),
+            );
         }
         if !(self.tau_z.is_finite() && self.tau_z > 0.0) {
             return bad("tau_z", format!("must be > 0, got {}", self.tau_z));
@@ -191,7 +200,10 @@ impl PatchModelConfig {
             }
         }
         if !(self.rho_max > 0.0 && self.rho_max < 1.0) {
-            return bad("rho_max", format!("must lie in (0, 1), got {}", self.rho_max));
+            return bad(
+                "rho_max",
+                format!("must lie in (0, 1), got {}", self.rho_max),
+            );
         }
         if !(self.update_rate > 0.0 && self.update_rate <= 1.0) {
             return bad(
@@ -367,7 +379,9 @@ impl RgbdFeatures {
                 } else if !z.is_finite() || z < 0.0 {
                     return Err(CoreError::invalid(
                         "depth",
-                        format!("pixel ({x}, {y}) is {z}: depth must be ≥ 0 and finite (0/NaN = none)"),
+                        format!(
+                            "pixel ({x}, {y}) is {z}: depth must be ≥ 0 and finite (0/NaN = none)"
+                        ),
                     )
                     .into());
                 } else {
@@ -555,7 +569,9 @@ impl PatchMultiCueModel {
         if nv < need {
             return Err(CoreError::invalid(
                 "init box",
-                format!("only {nv} valid template patches (need {need}): is the target in the box?"),
+                format!(
+                    "only {nv} valid template patches (need {need}): is the target in the box?"
+                ),
             )
             .into());
         }
@@ -654,11 +670,7 @@ impl PatchMultiCueModel {
     ///
     /// # Errors
     /// A non-finite box or one smaller than `N` px a side.
-    pub fn describe_box(
-        &self,
-        f: &RgbdFeatures,
-        b: &BBox,
-    ) -> Result<PatchDescriptor, VisionError> {
+    pub fn describe_box(&self, f: &RgbdFeatures, b: &BBox) -> Result<PatchDescriptor, VisionError> {
         let z = self.target_depth(f, b)?;
         self.describe_at(f, b, z)
     }
@@ -782,7 +794,12 @@ impl PatchMultiCueModel {
             0.0
         };
         if cfg.depth_kernel && z_star.is_none() {
-            for h in out.hist.colour.iter_mut().chain(out.hist.texture.iter_mut()) {
+            for h in out
+                .hist
+                .colour
+                .iter_mut()
+                .chain(out.hist.texture.iter_mut())
+            {
                 *h = None;
             }
         }
@@ -970,7 +987,11 @@ mod tests {
                 let (c, z) = if occ {
                     ([200u8, 30, 30], 1.5f32)
                 } else if tgt {
-                    let c = if (y / 6) % 2 == 0 { [40, 90, 200] } else { [220, 180, 60] };
+                    let c = if (y / 6) % 2 == 0 {
+                        [40, 90, 200]
+                    } else {
+                        [220, 180, 60]
+                    };
                     (c, 2.5)
                 } else {
                     let g = u8::try_from(100 + (x * 7 + y * 13) % 50).unwrap();

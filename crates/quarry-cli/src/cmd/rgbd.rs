@@ -125,7 +125,9 @@ fn list(dir: &Path) -> Result<Vec<(u64, PathBuf)>, CmdError> {
     let mut v = Vec::new();
     for e in std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))? {
         let p = e?.path();
-        if p.extension().and_then(|x| x.to_str()).is_some_and(|x| x.eq_ignore_ascii_case("png"))
+        if p.extension()
+            .and_then(|x| x.to_str())
+            .is_some_and(|x| x.eq_ignore_ascii_case("png"))
             && let Some(n) = frame_number(&p)
         {
             v.push((n, p));
@@ -162,8 +164,18 @@ fn colour(o: &TrackOutput) -> Rgb<u8> {
 #[allow(clippy::cast_possible_truncation)]
 fn draw(img: &mut RgbImage, b: &BBox, c: Rgb<u8>, gt: Option<&BBox>) {
     let rect = |img: &mut RgbImage, b: &BBox, c: Rgb<u8>| {
-        let (l, t, r, bo) = (b.left() as i64, b.top() as i64, b.right() as i64, b.bottom() as i64);
-        for (a, z) in [((l, t), (r, t)), ((r, t), (r, bo)), ((r, bo), (l, bo)), ((l, bo), (l, t))] {
+        let (l, t, r, bo) = (
+            b.left() as i64,
+            b.top() as i64,
+            b.right() as i64,
+            b.bottom() as i64,
+        );
+        for (a, z) in [
+            ((l, t), (r, t)),
+            ((r, t), (r, bo)),
+            ((r, bo), (l, bo)),
+            ((l, bo), (l, t)),
+        ] {
             quarry_vision::render::draw_line(img, a, z, c);
         }
     };
@@ -240,7 +252,7 @@ fn config(args: &RgbdArgs) -> Result<RgbdPersonConfig, CmdError> {
 pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
     let cfg = config(args)?;
     if let Some(dir) = &args.sequence {
-        return run_sequence(args, dir, cfg, out);
+        return run_sequence(args, dir, &cfg, out);
     }
     let id = ScenarioId::from_name(&args.scenario)?;
     let scene = RgbdScene::new(id, args.seed)?;
@@ -254,7 +266,14 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
     let (s, recs) = run_scenario(&scene, args.seed, &cfg, odo, |smp, o| {
         if let Some(w) = writer.as_mut()
             && werr.is_none()
-            && let Err(e) = w.frame(smp.truth.frame, 640, 480, &smp.rgb, o, smp.truth.amodal.as_ref())
+            && let Err(e) = w.frame(
+                smp.truth.frame,
+                640,
+                480,
+                &smp.rgb,
+                o,
+                smp.truth.amodal.as_ref(),
+            )
         {
             werr = Some(e);
         }
@@ -298,12 +317,7 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
 }
 
 #[allow(clippy::cast_precision_loss)]
-fn run_sequence(
-    args: &RgbdArgs,
-    dir: &Path,
-    cfg: RgbdPersonConfig,
-    out: &Output,
-) -> CmdResult {
+fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Output) -> CmdResult {
     let ptb = match args.depth_format.as_str() {
         "ptb" => true,
         "mm" => false,
@@ -314,18 +328,17 @@ fn run_sequence(
     if rgbs.is_empty() {
         return Err(format!("{}: no PNG frames in rgb/", dir.display()).into());
     }
-    let init = match &args.init {
-        Some(s) => parse_box(s)?,
-        None => {
-            let p = dir.join("init.txt");
-            parse_box(
-                std::fs::read_to_string(&p)
-                    .map_err(|e| format!("no --init and {}: {e}", p.display()))?
-                    .lines()
-                    .next()
-                    .unwrap_or(""),
-            )?
-        }
+    let init = if let Some(s) = &args.init {
+        parse_box(s)?
+    } else {
+        let p = dir.join("init.txt");
+        parse_box(
+            std::fs::read_to_string(&p)
+                .map_err(|e| format!("no --init and {}: {e}", p.display()))?
+                .lines()
+                .next()
+                .unwrap_or(""),
+        )?
     };
     let mut tr: Option<RgbdPersonTracker> = None;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
@@ -336,7 +349,9 @@ fn run_sequence(
             .find(|(m, _)| m == num)
             .map(|x| &x.1)
             .ok_or_else(|| format!("frame {num}: {} has no depth frame", rp.display()))?;
-        let rgb = image::open(rp).map_err(|e| format!("{}: {e}", rp.display()))?.to_rgb8();
+        let rgb = image::open(rp)
+            .map_err(|e| format!("{}: {e}", rp.display()))?
+            .to_rgb8();
         let depth = load_depth(dp, ptb)?;
         let (w, h) = rgb.dimensions();
         if depth.dimensions() != (w, h) {
@@ -392,22 +407,6 @@ fn run_sequence(
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn parsing() {
-        assert_eq!(frame_number(Path::new("r-123_45.png")), Some(45));
-        assert_eq!(frame_number(Path::new("abc.png")), None);
-        assert!(parse_box("1,2,3,4").is_ok());
-        assert!(parse_box("1,2,0,4").is_err());
-        assert!(parse_box("1,2,nan,4").is_err());
-        assert!(parse_box("1,2").is_err());
-        assert_eq!(0x1234u16.rotate_right(3), (0x1234 >> 3) | (0x1234 << 13));
-    }
-}
-
 /// Rows of `quarry demo`: S1 (static robot, crossing occluder), patch tracker and baseline.
 ///
 /// # Errors
@@ -435,4 +434,20 @@ pub fn demo_rows(seed: u64) -> Result<Vec<super::demo::Row>, CmdError> {
         }
     }
     Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parsing() {
+        assert_eq!(frame_number(Path::new("r-123_45.png")), Some(45));
+        assert_eq!(frame_number(Path::new("abc.png")), None);
+        assert!(parse_box("1,2,3,4").is_ok());
+        assert!(parse_box("1,2,0,4").is_err());
+        assert!(parse_box("1,2,nan,4").is_err());
+        assert!(parse_box("1,2").is_err());
+        assert_eq!(0x1234u16.rotate_right(3), 0x8246); // (v >> 3) | (v << 13)
+    }
 }
