@@ -943,12 +943,27 @@ pub struct ScenarioSummary {
 ///
 /// # Errors
 /// A simulator or tracker error.
-#[allow(clippy::cast_precision_loss, clippy::too_many_lines)]
 pub fn run_scenario(
     scene: &quarry_sim::rgbd::RgbdScene,
     seed: u64,
     cfg: &RgbdPersonConfig,
     odometry: OdometryFeed,
+    on_frame: impl FnMut(&quarry_sim::rgbd::RgbdSample, &TrackOutput),
+) -> Result<(ScenarioSummary, Vec<FrameRecord>), TrackerError> {
+    run_scenario_frames(scene, seed, cfg, odometry, scene.len(), on_frame)
+}
+
+/// [`run_scenario`] over the first `n_frames` frames only (e.g. a quick demo).
+///
+/// # Errors
+/// A simulator or tracker error.
+#[allow(clippy::cast_precision_loss, clippy::too_many_lines)]
+pub fn run_scenario_frames(
+    scene: &quarry_sim::rgbd::RgbdScene,
+    seed: u64,
+    cfg: &RgbdPersonConfig,
+    odometry: OdometryFeed,
+    n_frames: usize,
     mut on_frame: impl FnMut(&quarry_sim::rgbd::RgbdSample, &TrackOutput),
 ) -> Result<(ScenarioSummary, Vec<FrameRecord>), TrackerError> {
     let sim = |e: quarry_sim::SimError| TrackerError::Config(e.to_string());
@@ -971,7 +986,7 @@ pub fn run_scenario(
     .map_err(vis_err)?;
     tr.init(Stamp::from_frame(0, scene.dt), &frame0, init)?;
     let mut recs = Vec::with_capacity(scene.len());
-    for k in 1..scene.len() {
+    for k in 1..n_frames.min(scene.len()) {
         let smp = scene.render(k).map_err(sim)?;
         let t = &smp.truth;
         let d = match odometry {

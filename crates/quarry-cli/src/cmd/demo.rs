@@ -32,7 +32,8 @@ Current rows:
 constant-velocity target (1000 steps, dt 0.1 s, q 0.5 m^2/s^3, position noise 0.5 m); \
 reports the position RMSE and the mean NEES with its 95 % chi-square interval (quarry-eval).
   rgbd-person / rgbd-baseline   the RGB-D person tracker (paper 001) and the whole-target \
-baseline on synthetic S1 (static robot, crossing occluder): success at IoU 0.5 and centre error.
+baseline on the first 210 frames of synthetic S1 (static robot, crossing occluder): success \
+at IoU 0.5 and centre error.
 
 JSON (--json) prints {\"seed\": N, \"rows\": [{\"tracker\", \"scenario\", \"metric\", \
 \"value\", \"paper\" (null when the paper has no such number), \"ms_per_frame\"}, ...]}.
