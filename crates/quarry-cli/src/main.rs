@@ -63,6 +63,7 @@ enum Command {
     Sift(cmd::sift::SiftArgs),
     Segment(cmd::segment::SegmentArgs),
     Motion(cmd::motion::MotionArgs),
+    Rgbd(cmd::rgbd::RgbdArgs),
 }
 
 fn main() -> ExitCode {
@@ -78,6 +79,7 @@ fn main() -> ExitCode {
         Command::Sift(a) => cmd::sift::run(a, &out),
         Command::Segment(a) => cmd::segment::run(a, &out),
         Command::Motion(a) => cmd::motion::run(a, &out),
+        Command::Rgbd(a) => cmd::rgbd::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

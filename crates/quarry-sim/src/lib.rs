@@ -15,6 +15,7 @@
 mod error;
 pub mod lidar_room;
 pub mod mrclam;
+pub mod rgbd;
 pub mod slamot;
 
 pub use error::SimError;

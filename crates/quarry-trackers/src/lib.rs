@@ -12,6 +12,7 @@ mod error;
 /// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
 pub mod jpda;
 pub mod lidar_people;
+pub mod rgbd_person;
 pub mod slamot;
 
 pub use error::TrackerError;

@@ -52,6 +52,7 @@ pub mod mapping;
 pub mod matching;
 pub mod minima;
 pub mod motion;
+pub mod multicue;
 pub mod patches;
 pub mod ramp;
 #[cfg(feature = "io")]
@@ -71,6 +72,9 @@ pub use mapping::{LinkKind, RegionMapping};
 pub use matching::{BruteForceL2, DMatch, DescriptorMatcher, KdTreeMatcher, MatchOptions};
 pub use minima::{Connectivity, Minima, regional_minima};
 pub use motion::{MinimumTrajectories, MotionStats, MotionTest};
+pub use multicue::{
+    CandidateScore, PatchDescriptor, PatchModelConfig, PatchMultiCueModel, RgbdFeatures, RgbdFrame,
+};
 pub use patches::{PatchGrid, PatchHistograms, patch_histograms};
 pub use ramp::add_regular_ramp;
 pub use segment::{RampBlurWatershed, SegmentOutput};

@@ -7,6 +7,7 @@ pub mod demo;
 pub mod eval;
 pub mod lidar;
 pub mod motion;
+pub mod rgbd;
 pub mod segment;
 pub mod sift;
 pub mod slamot;
