@@ -202,30 +202,26 @@ fn mode_of(m: ModeArg) -> AssociationMode {
     }
 }
 
-/// The filter configuration for a built-in scenario (S1: the filter knows P_D 0.9 and the
-/// clutter rate, spec §4.3 E6).
+/// The filter configuration for a built-in scenario (S1: [`SlamotConfig::s1`], the filter
+/// knows P_D 0.9 and the clutter rate, spec §4.3 E6, and initiates targets from two points).
 pub fn sim_config(
     particles: usize,
     mode: ModeArg,
     scenario: ScenarioArg,
     eq11: bool,
 ) -> (SlamotConfig, SlamotScenarioConfig) {
+    let (base, scen) = match scenario {
+        ScenarioArg::S0 => (SlamotConfig::default(), SlamotScenarioConfig::s0()),
+        ScenarioArg::S1 => (SlamotConfig::s1(), SlamotScenarioConfig::s1()),
+    };
     let mut cfg = SlamotConfig {
         particles,
         association: mode_of(mode),
-        ..SlamotConfig::default()
+        ..base
     };
     if eq11 {
         cfg.target_weight = TargetWeight::PaperEq11;
     }
-    let scen = match scenario {
-        ScenarioArg::S0 => SlamotScenarioConfig::s0(),
-        ScenarioArg::S1 => {
-            cfg.p_detect = 0.9;
-            cfg.clutter_density = 2.0 / (30.0 * 2.0 * std::f64::consts::PI);
-            SlamotScenarioConfig::s1()
-        }
-    };
     (cfg, scen)
 }
 
