@@ -451,15 +451,26 @@ fn two_point_state(
     prev: &InitPartner,
     sigma_v0: f64,
 ) -> Result<Gaussian<4>, SlamotError> {
-    let dt = prev.dt;
-    let v = (p - prev.p) / dt;
+    two_point_gaussian(p, cov, prev.p, prev.cov, prev.dt, sigma_v0)
+}
+
+/// [`two_point_state`] on plain values (shared with the EKF baseline).
+pub(crate) fn two_point_gaussian(
+    p: Vector2<f64>,
+    cov: Matrix2<f64>,
+    prev_p: Vector2<f64>,
+    prev_cov: Matrix2<f64>,
+    dt: f64,
+    sigma_v0: f64,
+) -> Result<Gaussian<4>, SlamotError> {
+    let v = (p - prev_p) / dt;
     let mut m = Vector4::new(p.x, p.y, v.x, v.y);
     let mut c = SMatrix::<f64, 4, 4>::zeros();
     c.fixed_view_mut::<2, 2>(0, 0).copy_from(&cov);
     c.fixed_view_mut::<2, 2>(0, 2).copy_from(&(cov / dt));
     c.fixed_view_mut::<2, 2>(2, 0).copy_from(&(cov / dt));
     c.fixed_view_mut::<2, 2>(2, 2)
-        .copy_from(&((cov + prev.cov) / (dt * dt)));
+        .copy_from(&((cov + prev_cov) / (dt * dt)));
     // fuse with the prior v ~ N(0, σ_v0² I): z = 0, H = [0 I], R = σ_v0² I
     let s = c.fixed_view::<2, 2>(2, 2).into_owned() + Matrix2::identity() * sigma_v0 * sigma_v0;
     let s_inv = s.try_inverse().ok_or(CoreError::NotPositiveDefinite {
@@ -1350,6 +1361,24 @@ where
     S: LandmarkStore<Gaussian<2>> + FromIterator<Gaussian<2>> + Send + Sync,
 {
     let mut tr = SlamotTracker::<S>::with_store(cfg.clone(), initial, filter_seed)?;
+    let mut res = score_frames(frames, dt_control, |stamp, obs| {
+        let reports = tr.step(stamp, obs)?;
+        Ok((tr.pose_estimate(), reports))
+    })?;
+    res.map = tr.map_estimate();
+    let (e, r) = tr.resample_counts();
+    res.resample_rate = if e > 0 { r as f64 / e as f64 } else { 0.0 };
+    Ok(res)
+}
+
+/// Drives a filter over simulated frames and scores it (spec §4.2): `step` runs one control
+/// step and returns the pose estimate and the track reports. `map` and `resample_rate` are left
+/// empty / 0 for the caller.
+pub(crate) fn score_frames(
+    frames: &[quarry_sim::slamot::SlamotFrame],
+    dt_control: f64,
+    mut step: impl FnMut(Stamp, &SlamotObservation) -> Result<(Pose2, Vec<TrackReport>), SlamotError>,
+) -> Result<SimRunResult, SlamotError> {
     let n_true = frames.first().map_or(0, |f| f.truth.targets.len());
     let mut res = SimRunResult {
         robot_err: Vec::new(),
@@ -1368,14 +1397,13 @@ where
     let mut pi: Option<Vec<Option<TrackId>>> = None;
     let start = std::time::Instant::now();
     for f in frames {
-        let reports = tr.step(
+        let (p, reports) = step(
             Stamp::from_frame(f.k, dt_control),
             &SlamotObservation::from(f),
         )?;
         if !f.observe {
             continue;
         }
-        let p = tr.pose_estimate();
         let tp = f.truth.robot;
         res.robot_err.push((p.x - tp.x).hypot(p.y - tp.y));
         res.epoch_t.push(f.t);
@@ -1426,9 +1454,6 @@ where
     }
     let el = start.elapsed().as_secs_f64();
     res.ms_per_step = 1e3 * el / frames.len().max(1) as f64;
-    res.map = tr.map_estimate();
-    let (e, r) = tr.resample_counts();
-    res.resample_rate = if e > 0 { r as f64 / e as f64 } else { 0.0 };
     Ok(res)
 }
 
@@ -1657,6 +1682,34 @@ mod tests {
                 SlamotScenarioConfig::s0(),
             ),
             (
+                "EKF S0 jpda",
+                SlamotConfig::default(),
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "EKF S0 paper",
+                SlamotConfig {
+                    association: AssociationMode::Paper,
+                    ..SlamotConfig::default()
+                },
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "EKF S1 jpda",
+                s1(AssociationMode::Jpda),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "EKF S1 paper",
+                s1(AssociationMode::Paper),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "EKF S1 jipda",
+                s1(AssociationMode::Jipda),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
                 "S1 paper",
                 s1(AssociationMode::Paper),
                 SlamotScenarioConfig::s1(),
@@ -1680,7 +1733,11 @@ mod tests {
             let mut rs = 0.0;
             let mut ms = 0.0;
             for r in 0..runs {
-                let res = run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles)).unwrap();
+                let res = if name.starts_with("EKF") {
+                    crate::ekf_slamot::run_simulated_ekf(&cfg, &scen, r).unwrap()
+                } else {
+                    run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles)).unwrap()
+                };
                 let (m, v) = mean_var(&res.robot_err);
                 rm.push(m);
                 rv.push(v);
