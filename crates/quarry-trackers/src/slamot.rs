@@ -727,6 +727,44 @@ where
         })
     }
 
+    /// A tracker that starts from a known landmark map (e.g. a previous session's), shared by
+    /// every particle: the store is built once and cloned into each particle (O(1) per particle
+    /// for the persistent tree, O(M) for the flat store). Detections of these landmark ids are
+    /// then updates, not initialisations. Duplicate ids or non-finite / non-PD landmarks are
+    /// errors.
+    pub fn with_prior_map(
+        cfg: SlamotConfig,
+        initial: Pose2,
+        seed: u64,
+        landmarks: &[(LandmarkId, Gaussian<2>)],
+    ) -> Result<Self, SlamotError> {
+        let mut t = Self::with_store(cfg, initial, seed)?;
+        let mut store: S = std::iter::empty().collect();
+        for (ext, g) in landmarks {
+            if !(g.mean.iter().chain(g.cov.iter()).all(|v| v.is_finite())) {
+                return Err(CoreError::NonFinite {
+                    what: "prior landmark",
+                }
+                .into());
+            }
+            Gaussian::try_new(g.mean, g.cov)?;
+            if t.lm_index.contains_key(ext) {
+                return Err(SlamotError::Config(format!(
+                    "prior map: landmark id {} given twice",
+                    ext.0
+                )));
+            }
+            let id = LandmarkId(t.lm_external.len() as u32);
+            t.lm_index.insert(*ext, id);
+            t.lm_external.push(*ext);
+            store.push(*g);
+        }
+        for p in &mut t.particles {
+            p.map = store.clone();
+        }
+        Ok(t)
+    }
+
     /// The configuration.
     pub fn config(&self) -> &SlamotConfig {
         &self.cfg
@@ -1732,6 +1770,8 @@ mod tests {
             let mut losses = 0;
             let mut rs = 0.0;
             let mut ms = 0.0;
+            // E5: correlation times [s] of the robot and target error series
+            let mut ct = vec![Vec::new(); 4];
             for r in 0..runs {
                 let res = if name.starts_with("EKF") {
                     crate::ekf_slamot::run_simulated_ekf(&cfg, &scen, r).unwrap()
@@ -1747,6 +1787,15 @@ mod tests {
                     tv[l].push(v);
                 }
                 losses += usize::from(res.swap_or_loss);
+                let dt_z = scen.dt_observe();
+                for (i, e) in std::iter::once(&res.robot_err)
+                    .chain(&res.target_err)
+                    .enumerate()
+                {
+                    if let Ok(Some(t)) = quarry_eval::position::correlation_time(e, dt_z) {
+                        ct[i].push(t);
+                    }
+                }
                 rs += res.resample_rate;
                 ms += res.ms_per_step;
             }
@@ -1767,6 +1816,17 @@ mod tests {
                 mean_var(&tv[2]).0,
                 rs / runs as f64,
                 ms / runs as f64
+            );
+            eprintln!(
+                "{name}: E5 correlation time [s] robot {:.2} targets {:.2} {:.2} {:.2} (runs with a value: {} {} {} {})",
+                mean_var(&ct[0]).0,
+                mean_var(&ct[1]).0,
+                mean_var(&ct[2]).0,
+                mean_var(&ct[3]).0,
+                ct[0].len(),
+                ct[1].len(),
+                ct[2].len(),
+                ct[3].len()
             );
         }
         if let Ok(ns) = std::env::var("SLAMOT_SWEEP") {
@@ -1817,6 +1877,47 @@ mod tests {
         }
         assert!(losses <= 2, "{losses}/20 runs lost a target");
         assert_eq!(bad_init, 0, "a slot started on clutter");
+    }
+
+    #[test]
+    fn prior_map_is_shared_and_updated() {
+        let g = |x: f64, y: f64| Gaussian::try_new(Vector2::new(x, y), Matrix2::identity() * 0.01);
+        let prior: Vec<(LandmarkId, Gaussian<2>)> = (0..300)
+            .map(|i| (LandmarkId(1000 + i), g(f64::from(i) * 0.1, 5.0).unwrap()))
+            .collect();
+        let cfg = SlamotConfig {
+            particles: 8,
+            ..SlamotConfig::default()
+        };
+        let mut t =
+            SlamotTracker::<DefaultStore>::with_prior_map(cfg.clone(), Pose2::identity(), 3, &prior)
+                .unwrap();
+        let ps = t.particles();
+        assert_eq!(ps[0].map.unshared_nodes(&ps[7].map), 0);
+        assert_eq!(t.map_estimate().len(), 300);
+        // a detection of a prior landmark is an update: the map does not grow
+        let z = [5.0, std::f64::consts::FRAC_PI_2];
+        let obs = SlamotObservation {
+            dt: 0.025,
+            odometry: (0.0, 0.0),
+            observe: true,
+            landmark_obs: vec![(LandmarkId(1000), z)],
+            target_obs: vec![],
+        };
+        t.step(Stamp::from_frame(1, 0.025), &obs).unwrap();
+        assert_eq!(t.map_estimate().len(), 300);
+        let dup = vec![prior[0], prior[0]];
+        assert!(matches!(
+            SlamotTracker::<DefaultStore>::with_prior_map(cfg.clone(), Pose2::identity(), 3, &dup),
+            Err(SlamotError::Config(_))
+        ));
+        let nan = vec![(
+            LandmarkId(1),
+            Gaussian::new_unchecked(Vector2::new(f64::NAN, 0.0), Matrix2::identity()),
+        )];
+        assert!(
+            SlamotTracker::<FlatStore>::with_prior_map(cfg, Pose2::identity(), 3, &nan).is_err()
+        );
     }
 
     #[test]
