@@ -17,13 +17,13 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use nalgebra::{Matrix2, Vector2};
 use quarry::core::{Gaussian, LandmarkId, LandmarkStore, MultiTargetTracker, Pose2, Stamp};
 use quarry::sim::slamot::{SlamotScenarioConfig, simulate};
 use quarry::trackers::ekf_slamot::EkfSlamot;
 use quarry::trackers::slamot::{
     DefaultStore, FlatStore, SlamotConfig, SlamotObservation, SlamotTracker,
 };
-use nalgebra::{Matrix2, Vector2};
 use rand::Rng;
 
 fn pool(threads: usize) -> rayon::ThreadPool {

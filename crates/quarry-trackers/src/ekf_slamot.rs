@@ -50,16 +50,21 @@ use faer::{Accum, Mat, Par};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix2x3, SMatrix, Vector2, Vector3, Vector4};
 use quarry_assoc::{Jipda, Jpda, PaperLikelihood};
 use quarry_core::{
-    Associator, CoreError, Gaussian, LandmarkId, LikelihoodMatrix, MotionModel,
-    MultiTargetTracker, Pose2, Stamp, StateEstimate, StateLayout, TrackFlags, TrackId, TrackPrior,
-    TrackReport, TrackStatus, wrap_angle,
+    Associator, CoreError, Gaussian, LandmarkId, LikelihoodMatrix, MotionModel, MultiTargetTracker,
+    Pose2, Stamp, StateEstimate, StateLayout, TrackFlags, TrackId, TrackPrior, TrackReport,
+    TrackStatus, wrap_angle,
 };
 use quarry_filter::{Bicycle, ConstantVelocity2, RangeBearing, Unicycle};
 
 use crate::slamot::{
-    AssociationMode, RobotMotion, SimRunResult, SlamotConfig, SlamotError, SlamotObservation,
-    TargetInit, score_frames,
+    AssociationMode, MapPoints, RobotMotion, SimRunResult, SlamotConfig, SlamotError,
+    SlamotObservation, TargetInit, score_frames,
 };
+
+/// A point from the inverse model: mean, covariance from the sensor noise, `∂p/∂x_R`.
+type PointInit = (Vector2<f64>, Matrix2<f64>, Matrix2x3<f64>);
+/// A previous-epoch partner of a detection: mean, covariance, time since it [s].
+type Partner = (Vector2<f64>, Matrix2<f64>, f64);
 
 /// One target block of the joint state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,7 +88,7 @@ pub struct EkfSlamot {
     targets: Vec<TargetBlock>,
     t: f64,
     last_target_t: Option<f64>,
-    prev_target_pts: Option<(f64, Vec<(Vector2<f64>, Matrix2<f64>)>)>,
+    prev_target_pts: Option<(f64, MapPoints)>,
     epochs: u64,
 }
 
@@ -163,7 +168,11 @@ impl EkfSlamot {
                 let o = t.offset;
                 let m = Vector4::new(self.x[o], self.x[o + 1], self.x[o + 2], self.x[o + 3]);
                 let c = SMatrix::<f64, 4, 4>::from_fn(|i, j| self.p[(o + i, o + j)]);
-                (t.id, Gaussian::new_unchecked(m, (c + c.transpose()) * 0.5), t.existence)
+                (
+                    t.id,
+                    Gaussian::new_unchecked(m, (c + c.transpose()) * 0.5),
+                    t.existence,
+                )
             })
             .collect()
     }
@@ -319,14 +328,7 @@ impl EkfSlamot {
         let m_f = Mat::<f64>::from_fn(2, 2, |i, j| m[(i, j)]);
         let mut km = Mat::<f64>::zeros(d, 2);
         matmul(&mut km, Accum::Replace, &k, &m_f, 1.0, Par::Seq);
-        matmul(
-            &mut self.p,
-            Accum::Add,
-            &km,
-            k.transpose(),
-            -1.0,
-            Par::Seq,
-        );
+        matmul(&mut self.p, Accum::Add, &km, k.transpose(), -1.0, Par::Seq);
         if !self.x.iter().all(|v| v.is_finite()) {
             return Err(CoreError::NonFinite {
                 what: "EKF-SLAMOT state after an update",
@@ -370,10 +372,7 @@ impl EkfSlamot {
         d
     }
 
-    fn inverse_point(
-        &self,
-        z: &Vector2<f64>,
-    ) -> Result<(Vector2<f64>, Matrix2<f64>, Matrix2x3<f64>), SlamotError> {
+    fn inverse_point(&self, z: &Vector2<f64>) -> Result<PointInit, SlamotError> {
         if z[0] <= 0.0 {
             return Err(CoreError::invalid("range", format!("{} (must be > 0)", z[0])).into());
         }
@@ -400,7 +399,7 @@ impl EkfSlamot {
     fn select_init(
         &mut self,
         targets: &[Vector2<f64>],
-    ) -> Result<Vec<(usize, Option<(Vector2<f64>, Matrix2<f64>, f64)>)>, SlamotError> {
+    ) -> Result<Vec<(usize, Option<Partner>)>, SlamotError> {
         let n = self.cfg.n_targets;
         match self.cfg.target_init {
             TargetInit::FirstN => Ok(if targets.len() == n {
@@ -505,9 +504,9 @@ impl EkfSlamot {
                         c[(3, 3)] = sv * sv;
                         Gaussian::try_new(Vector4::new(pt.x, pt.y, 0.0, 0.0), c)?
                     }
-                    Some((pp, pcov, dt)) => crate::slamot::two_point_gaussian(
-                        pt, pc, *pp, *pcov, *dt, sv,
-                    )?,
+                    Some((pp, pcov, dt)) => {
+                        crate::slamot::two_point_gaussian(pt, pc, *pp, *pcov, *dt, sv)?
+                    }
                 };
                 let own = DMatrix::from_fn(4, 4, |i, j| g.cov[(i, j)]);
                 let mean: Vec<f64> = g.mean.iter().copied().collect();
@@ -586,9 +585,8 @@ impl EkfSlamot {
         let lik = LikelihoodMatrix::new(ll)?;
         let cfg = &self.cfg;
         let a = match cfg.association {
-            AssociationMode::Jpda => {
-                Jpda::new(cfg.p_detect, cfg.p_gate, cfg.clutter_density)?.associate(&lik, &priors)?
-            }
+            AssociationMode::Jpda => Jpda::new(cfg.p_detect, cfg.p_gate, cfg.clutter_density)?
+                .associate(&lik, &priors)?,
             AssociationMode::Jipda => Jipda::new(cfg.p_detect, cfg.p_gate, cfg.clutter_density)?
                 .associate(&lik, &priors)?,
             AssociationMode::Paper => PaperLikelihood.associate(&lik, &priors)?,
@@ -753,9 +751,9 @@ mod tests {
             let res = run_simulated_ekf(&SlamotConfig::default(), &scen, r).unwrap();
             let (er, _) = mean_var(&res.robot_err);
             assert!(er < 0.452, "run {r}: robot {er}");
-            for l in 0..3 {
+            for (l, bound) in paper.iter().enumerate() {
                 let (el, _) = mean_var(&res.target_err[l]);
-                assert!(el < paper[l] && el > 0.02, "run {r} target {l}: {el}");
+                assert!(el < *bound && el > 0.02, "run {r} target {l}: {el}");
             }
             assert!(!res.swap_or_loss);
         }
@@ -796,6 +794,59 @@ mod tests {
             target_obs: vec![],
         };
         assert!(e.step(Stamp::from_frame(3, 0.025), &zero_range).is_err());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Arbitrary observation streams (any floats, repeated/unknown ids, zero ranges, epochs
+        /// with and without detections) give `Ok` or an error from both SLAMOT filters, never a
+        /// panic, and an `Ok` state stays finite.
+        #[test]
+        fn arbitrary_input_never_panics(
+            steps in proptest::collection::vec(
+                (
+                    proptest::prelude::any::<bool>(),
+                    (-5.0f64..5.0, -1.0f64..1.0),
+                    proptest::collection::vec((0u32..6, -1.0f64..40.0, -4.0f64..4.0), 0..5),
+                    proptest::collection::vec((-1.0f64..40.0, -4.0f64..4.0), 0..5),
+                    proptest::prelude::any::<u8>(),
+                ),
+                1..25,
+            )
+        ) {
+            let cfg = SlamotConfig { particles: 4, ..SlamotConfig::s1() };
+            let mut ekf = EkfSlamot::new(cfg.clone(), Pose2::identity()).unwrap();
+            let mut pf = SlamotTracker::new(cfg, Pose2::identity(), 1).unwrap();
+            let (mut ekf_ok, mut pf_ok) = (true, true);
+            for (k, (observe, odo, lms, tgs, poison)) in steps.into_iter().enumerate() {
+                let mut o = SlamotObservation {
+                    dt: 0.025,
+                    odometry: odo,
+                    observe,
+                    landmark_obs: lms.iter().map(|(i, r, b)| (LandmarkId(*i), [*r, *b])).collect(),
+                    target_obs: tgs.iter().map(|(r, b)| [*r, *b]).collect(),
+                };
+                match poison % 8 {
+                    0 => o.odometry.0 = f64::NAN,
+                    1 => o.dt = f64::INFINITY,
+                    2 => o.target_obs.push([f64::NAN, 0.0]),
+                    _ => {}
+                }
+                let s = Stamp::from_frame(k as u64 + 1, 0.025);
+                if ekf_ok {
+                    match ekf.step(s, &o) {
+                        Ok(_) => proptest::prop_assert!(ekf.pose_estimate().is_finite()),
+                        Err(_) => ekf_ok = false,
+                    }
+                }
+                if pf_ok {
+                    match pf.step(s, &o) {
+                        Ok(_) => proptest::prop_assert!(pf.pose_estimate().is_finite()),
+                        Err(_) => pf_ok = false,
+                    }
+                }
+            }
+        }
     }
 
     /// One particle with no control noise: the RBPF's pose is exact and its landmarks and targets

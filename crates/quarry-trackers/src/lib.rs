@@ -8,9 +8,9 @@
 //! assert!(e.to_string().contains("particles"));
 //! ```
 
-mod error;
 /// EKF-SLAMOT: the joint-EKF baseline of paper 000 (its reference [8]).
 pub mod ekf_slamot;
+mod error;
 /// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
 pub mod jpda;
 pub mod lidar_people;

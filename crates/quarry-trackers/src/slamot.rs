@@ -297,7 +297,9 @@ impl SlamotConfig {
         if let TargetInit::TwoPoint { max_speed } = self.target_init
             && !(max_speed.is_finite() && max_speed > 0.0)
         {
-            return fail(format!("two-point max_speed {max_speed} must be finite and > 0"));
+            return fail(format!(
+                "two-point max_speed {max_speed} must be finite and > 0"
+            ));
         }
         if !(self.neff_threshold > 0.0 && self.neff_threshold <= 1.0) {
             return fail("neff_threshold must be in (0, 1]".into());
@@ -664,8 +666,11 @@ pub struct SlamotTracker<S> {
     last_beta: DMatrix<f64>,
     last_beta_ids: Vec<TrackId>,
     /// Previous epoch's target detections in the map frame (two-point initiation): time, points.
-    prev_target_pts: Option<(f64, Vec<(Vector2<f64>, Matrix2<f64>)>)>,
+    prev_target_pts: Option<(f64, MapPoints)>,
 }
+
+/// Detections placed in the map frame: (mean, covariance) per detection.
+pub(crate) type MapPoints = Vec<(Vector2<f64>, Matrix2<f64>)>;
 
 /// The default landmark store: quarry-filter's persistent Arc tree (O(1) particle copy,
 /// O(log M) landmark update).
@@ -1862,7 +1867,10 @@ mod tests {
     /// lose a target. With the spec's first-n initiation 10 of these 20 runs lose one (a clutter
     /// point among the first 3 detections); two-point initiation (A19) loses none (measured 0/20).
     #[test]
-    #[cfg_attr(debug_assertions, ignore = "20 runs: seconds in release, minutes in debug")]
+    #[cfg_attr(
+        debug_assertions,
+        ignore = "20 runs: seconds in release, minutes in debug"
+    )]
     fn s1_stress_at_most_two_losses() {
         let scen = SlamotScenarioConfig::s1();
         let cfg = SlamotConfig::s1();
@@ -1889,9 +1897,13 @@ mod tests {
             particles: 8,
             ..SlamotConfig::default()
         };
-        let mut t =
-            SlamotTracker::<DefaultStore>::with_prior_map(cfg.clone(), Pose2::identity(), 3, &prior)
-                .unwrap();
+        let mut t = SlamotTracker::<DefaultStore>::with_prior_map(
+            cfg.clone(),
+            Pose2::identity(),
+            3,
+            &prior,
+        )
+        .unwrap();
         let ps = t.particles();
         assert_eq!(ps[0].map.unshared_nodes(&ps[7].map), 0);
         assert_eq!(t.map_estimate().len(), 300);
@@ -2194,4 +2206,3 @@ pub fn run_mrclam(
         map,
     })
 }
-

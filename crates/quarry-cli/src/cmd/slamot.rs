@@ -698,9 +698,11 @@ fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), CmdError> {
 
 fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
     if args.filter == FilterArg::Ekf {
-        return Err("--filter ekf needs a known target count; MRCLAM runs use JIPDA births and \
+        return Err(
+            "--filter ekf needs a known target count; MRCLAM runs use JIPDA births and \
                     deaths (the number of robots in view varies): use the RBPF"
-            .into());
+                .into(),
+        );
     }
     let run = quarry_sim::mrclam::load(dir, args.robot)?;
     let mut cfg = mrclam_config(args.particles);
