@@ -2,11 +2,13 @@
 //!
 //! - `slamot_b1/epoch/N`: one observation epoch of S0 (8 control predictions + landmark and
 //!   target update + resampling) at t ≈ 40 s, N particles (B1).
-//! - `slamot_b2/{persistent,vec}/M`: N = 100 particles whose maps hold M landmarks; one epoch
-//!   observes 10 random known landmarks (no targets) and resamples when N_eff < 0.75 N (B2: the
-//!   O(N log M) claim; the tree store should grow ~log M, the Vec store ~M).
+//! - `slamot_b2/{persistent,vec}/M`: N = 100 particles whose maps start as one shared prior map
+//!   of M landmarks (`SlamotTracker::with_prior_map`); one epoch observes 10 random known
+//!   landmarks (no targets) and resamples when N_eff < 0.75 N (B2: the O(N log M) claim; the
+//!   tree store should grow ~log M, the Vec store ~M).
 //! - `slamot_goal/n1000_m1000`: 1000 particles, 1000 landmarks in the map, 13 landmark and 3
 //!   target detections per epoch, one core (the 10 Hz goal = 100 ms per epoch).
+//! - `slamot_ekf/epoch/dD`: the EKF-SLAMOT baseline on B1's epoch (state dimension D).
 //! - `slamot_b4/threads/T`: B1 at N = 600 with T rayon threads.
 //!
 //! `cargo bench --bench slamot -- --noplot`
@@ -15,8 +17,10 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use nalgebra::{Matrix2, Vector2};
 use quarry::core::{Gaussian, LandmarkId, LandmarkStore, MultiTargetTracker, Pose2, Stamp};
 use quarry::sim::slamot::{SlamotScenarioConfig, simulate};
+use quarry::trackers::ekf_slamot::EkfSlamot;
 use quarry::trackers::slamot::{
     DefaultStore, FlatStore, SlamotConfig, SlamotObservation, SlamotTracker,
 };
@@ -82,6 +86,46 @@ fn b1(c: &mut Criterion) {
     g.finish();
 }
 
+/// The EKF-SLAMOT baseline on the same S0 epoch at t = 40 s as B1 (one thread; the EKF does
+/// not use rayon).
+fn ekf(c: &mut Criterion) {
+    let scen = SlamotScenarioConfig::s0();
+    let frames = simulate(&scen, 3).unwrap();
+    let mut e = EkfSlamot::new(SlamotConfig::default(), Pose2::new(4.0, 54.0, 0.0)).unwrap();
+    let k40 = (40.0 / scen.dt_control) as usize;
+    for f in &frames[..k40] {
+        e.step(
+            Stamp::from_frame(f.k, scen.dt_control),
+            &SlamotObservation::from(f),
+        )
+        .unwrap();
+    }
+    let next: Vec<_> = frames[k40..k40 + scen.obs_every as usize]
+        .iter()
+        .map(|f| {
+            (
+                Stamp::from_frame(f.k, scen.dt_control),
+                SlamotObservation::from(f),
+            )
+        })
+        .collect();
+    let mut g = c.benchmark_group("slamot_ekf");
+    g.sample_size(20);
+    g.bench_function(format!("epoch/d{}", e.dim()), |b| {
+        b.iter_batched(
+            || e.clone(),
+            |mut t| {
+                for (s, o) in &next {
+                    black_box(t.step(*s, o).unwrap());
+                }
+                t
+            },
+            criterion::BatchSize::LargeInput,
+        );
+    });
+    g.finish();
+}
+
 fn b4(c: &mut Criterion) {
     let mut g = c.benchmark_group("slamot_b4");
     g.sample_size(10);
@@ -121,7 +165,6 @@ where
         particles: n,
         ..SlamotConfig::default()
     };
-    let mut tr = SlamotTracker::<S>::with_store(cfg, Pose2::identity(), 1).unwrap();
     let mut rng = quarry::core::rng::seeded(5);
     let lm: Vec<[f64; 2]> = (0..m)
         .map(|_| {
@@ -130,23 +173,30 @@ where
             [r, b]
         })
         .collect();
+    // spec B2: every particle's map pre-filled with the same M landmarks (shared)
+    let prior: Vec<(LandmarkId, Gaussian<2>)> = lm
+        .iter()
+        .enumerate()
+        .map(|(i, z)| {
+            let mean = Vector2::new(z[0] * z[1].cos(), z[0] * z[1].sin());
+            (
+                LandmarkId(i as u32),
+                Gaussian::try_new(mean, Matrix2::identity() * 0.0025).unwrap(),
+            )
+        })
+        .collect();
+    let mut tr = SlamotTracker::<S>::with_prior_map(cfg, Pose2::identity(), 1, &prior).unwrap();
     let targets = vec![[10.0, 0.5], [12.0, -0.4], [15.0, 2.0]];
-    let init = SlamotObservation {
-        dt: 0.0,
-        odometry: (0.0, 0.0),
-        observe: true,
-        landmark_obs: lm
-            .iter()
-            .enumerate()
-            .map(|(i, z)| (LandmarkId(i as u32), *z))
-            .collect(),
-        target_obs: if with_targets {
-            targets.clone()
-        } else {
-            vec![]
-        },
-    };
-    tr.step(Stamp::from_frame(0, 0.2), &init).unwrap();
+    if with_targets {
+        let init = SlamotObservation {
+            dt: 0.0,
+            odometry: (0.0, 0.0),
+            observe: true,
+            landmark_obs: vec![],
+            target_obs: targets.clone(),
+        };
+        tr.step(Stamp::from_frame(0, 0.2), &init).unwrap();
+    }
     let epochs: Vec<SlamotObservation> = (0..16)
         .map(|_| SlamotObservation {
             dt: 0.2,
@@ -172,9 +222,7 @@ where
             },
         })
         .collect();
-    // Warm up: resampling makes the particles descend from few ancestors, so their maps share
-    // structure (spec B2: "pre-filled with M landmarks (shared)"); without it the first epochs
-    // pay for dropping whole unshared per-particle trees.
+    // Warm up to the steady state of per-particle copied paths.
     for (k, o) in epochs.iter().cycle().take(48).enumerate() {
         tr.step(Stamp::from_frame(k as u64 + 1, 0.2), o).unwrap();
     }
@@ -234,5 +282,5 @@ fn goal(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, b1, b2, goal, b4);
+criterion_group!(benches, b1, b2, goal, ekf, b4);
 criterion_main!(benches);

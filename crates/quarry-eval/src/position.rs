@@ -35,6 +35,46 @@ pub fn rmse(errors: &[f64]) -> Result<f64, EvalError> {
     Ok((errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt())
 }
 
+/// Correlation time of an error series (spec 000 §4.3 E5): the smallest lag τ ≥ 1 at which the
+/// normalised autocorrelation ρ(τ) = Σ_k (e_k − ē)(e_{k+τ} − ē) / Σ_k (e_k − ē)² drops below
+/// 1/e, times the sample period `dt` [s]. `Ok(None)` when it never does within the series, or
+/// when the series is constant (ρ undefined).
+///
+/// ```
+/// use quarry_eval::position::correlation_time;
+/// // alternating signs: ρ(1) = -(n-1)/n < 1/e, so τ = one sample
+/// let e = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0];
+/// assert_eq!(correlation_time(&e, 0.2)?, Some(0.2));
+/// # Ok::<(), quarry_eval::EvalError>(())
+/// ```
+pub fn correlation_time(errors: &[f64], dt: f64) -> Result<Option<f64>, EvalError> {
+    if errors.len() < 2 {
+        return Err(CoreError::Empty {
+            what: "error series (needs at least 2 samples)",
+        }
+        .into());
+    }
+    quarry_core::ensure_finite(errors, "error series")?;
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(CoreError::invalid("dt", format!("{dt} (must be finite and > 0)")).into());
+    }
+    let n = errors.len();
+    let m = errors.iter().sum::<f64>() / n as f64;
+    let d: Vec<f64> = errors.iter().map(|e| e - m).collect();
+    let c0: f64 = d.iter().map(|v| v * v).sum();
+    if c0 <= f64::EPSILON * m.abs().max(1.0) * n as f64 * f64::EPSILON {
+        return Ok(None);
+    }
+    let thr = (-1.0f64).exp();
+    for tau in 1..n {
+        let c: f64 = d[..n - tau].iter().zip(&d[tau..]).map(|(a, b)| a * b).sum();
+        if c / c0 < thr {
+            return Ok(Some(tau as f64 * dt));
+        }
+    }
+    Ok(None)
+}
+
 /// Euclidean error of each estimate against the truth of the same index.
 pub fn position_errors<const N: usize>(
     estimates: &[[f64; N]],
@@ -190,6 +230,49 @@ pub fn chi2_quantile(p: f64, dof: f64) -> Result<f64, EvalError> {
 mod tests {
     use super::*;
     use nalgebra::{Matrix2, Vector2};
+    use proptest::prelude::*;
+
+    #[test]
+    fn correlation_time_of_ar1() {
+        // AR(1) e_k = φ e_{k−1} + w_k has ρ(τ) = φ^τ: below 1/e at τ = ⌈−1/ln φ⌉ (+ sampling noise)
+        use rand::Rng;
+        let mut rng = quarry_core::rng::seeded(3);
+        let phi: f64 = 0.9;
+        let mut e = vec![0.0];
+        for _ in 0..20_000 {
+            let w: f64 = rng.random::<f64>() - 0.5;
+            e.push(phi * e[e.len() - 1] + w);
+        }
+        let tau = correlation_time(&e, 1.0).unwrap().unwrap();
+        let expect = (-1.0 / phi.ln()).ceil();
+        assert!((tau - expect).abs() <= 1.0, "{tau} vs {expect}");
+        assert_eq!(correlation_time(&[2.0, 2.0, 2.0], 1.0).unwrap(), None);
+        assert!(correlation_time(&[1.0], 1.0).is_err());
+        assert!(correlation_time(&[1.0, f64::NAN], 1.0).is_err());
+        assert!(correlation_time(&[1.0, 2.0], 0.0).is_err());
+        // a linear ramp of n = 100 samples: ρ(τ) ≈ 1 − 3s + 2s³ with s = τ/n (continuum limit),
+        // which reaches 1/e at s ≈ 0.218, i.e. τ ≈ 22
+        let ramp: Vec<f64> = (0..100).map(f64::from).collect();
+        let t = correlation_time(&ramp, 1.0).unwrap().unwrap();
+        assert!((t - 22.0).abs() <= 1.0, "{t}");
+    }
+
+    proptest! {
+        #[test]
+        fn correlation_time_is_affine_invariant(
+            e in proptest::collection::vec(-10.0f64..10.0, 3..60),
+            a in 0.1f64..10.0,
+            b in -5.0f64..5.0,
+        ) {
+            let t0 = correlation_time(&e, 0.2).unwrap();
+            let f: Vec<f64> = e.iter().map(|v| a * v + b).collect();
+            let t1 = correlation_time(&f, 0.2).unwrap();
+            if let (Some(x), Some(y)) = (t0, t1) {
+                prop_assert!((x - y).abs() < 1e-9);
+                prop_assert!(x >= 0.2 && x <= 0.2 * e.len() as f64);
+            }
+        }
+    }
 
     #[test]
     fn chi2_matches_scipy() {

@@ -8,6 +8,8 @@
 //! assert!(e.to_string().contains("particles"));
 //! ```
 
+/// EKF-SLAMOT: the joint-EKF baseline of paper 000 (its reference [8]).
+pub mod ekf_slamot;
 mod error;
 /// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
 pub mod jpda;

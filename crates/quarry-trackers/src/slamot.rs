@@ -117,6 +117,25 @@ pub enum Readout {
     BestParticle,
 }
 
+/// How the target slots are created when the target count n is known (spec §2.12, A19).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub enum TargetInit {
+    /// Spec §2.12 default: at the first epoch with exactly n detections, slot l from detection l
+    /// (velocity 0, σ_v0). With clutter and missed detections the n detections can include a
+    /// clutter point (S1: ≈ 43 % of 3-detection scans), and that slot is lost from the start.
+    #[default]
+    FirstN,
+    /// Spec A19 option, two-point initiation: a detection is a candidate when its nearest
+    /// detection of the previous epoch (both placed in the map frame from the weighted-mean pose)
+    /// lies within `max_speed · Δt + 3 √(tr Σ_k + tr Σ_{k−1})` (pairing is exclusive, nearest
+    /// first); slots are created at the first epoch with exactly n candidates. The velocity is the
+    /// two-point difference, fused with the N(0, σ_v0² I) prior of §2.12.
+    TwoPoint {
+        /// Largest plausible target speed [m/s] (gate of the pairing).
+        max_speed: f64,
+    },
+}
+
 /// Which landmark store the particles use (spec A9).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum MapStoreKind {
@@ -153,6 +172,8 @@ pub struct SlamotConfig {
     pub clutter_density: f64,
     /// Initial velocity std σ_v0 of a new target [m/s] (spec §2.12: 1.5).
     pub sigma_v0: f64,
+    /// How target slots are created with a known target count (spec §2.12 / A19).
+    pub target_init: TargetInit,
     /// Known target count n: targets are created at the first epoch with exactly n detections
     /// (spec §2.12, A10; paper: 3). Ignored when `track_management` is on.
     pub n_targets: usize,
@@ -202,6 +223,7 @@ impl Default for SlamotConfig {
             p_gate: 0.99,
             clutter_density: 0.1 / (30.0 * 2.0 * std::f64::consts::PI),
             sigma_v0: 1.5,
+            target_init: TargetInit::FirstN,
             n_targets: 3,
             track_management: false,
             survival: 0.999,
@@ -272,6 +294,13 @@ impl SlamotConfig {
         if !(self.sigma_v0.is_finite() && self.sigma_v0 > 0.0) {
             return fail("sigma_v0 must be finite and > 0".into());
         }
+        if let TargetInit::TwoPoint { max_speed } = self.target_init
+            && !(max_speed.is_finite() && max_speed > 0.0)
+        {
+            return fail(format!(
+                "two-point max_speed {max_speed} must be finite and > 0"
+            ));
+        }
         if !(self.neff_threshold > 0.0 && self.neff_threshold <= 1.0) {
             return fail("neff_threshold must be in (0, 1]".into());
         }
@@ -282,6 +311,18 @@ impl SlamotConfig {
             return fail("n_targets must be > 0 without track management".into());
         }
         Ok(())
+    }
+
+    /// The S1 stress configuration (spec §4.3 E6): filter P_D = 0.9, κ = 2 / (30 m · 2π) and
+    /// two-point target initiation (A19, max speed 3 m/s), which keeps clutter from creating a
+    /// slot at the first epoch. Everything else as `Default`.
+    pub fn s1() -> Self {
+        Self {
+            p_detect: 0.9,
+            clutter_density: 2.0 / (30.0 * 2.0 * std::f64::consts::PI),
+            target_init: TargetInit::TwoPoint { max_speed: 3.0 },
+            ..Self::default()
+        }
     }
 
     /// Gate threshold γ = χ²₂⁻¹(P_G) = −2 ln(1 − P_G).
@@ -378,6 +419,9 @@ struct EpochCtx<'a> {
     landmarks: &'a [(LandmarkId, Vector2<f64>, bool)],
     targets: &'a [Vector2<f64>],
     init_targets: bool,
+    /// Detections that create the slots, with the previous-epoch partner (map frame) for
+    /// two-point initiation.
+    init_sel: &'a [(usize, Option<InitPartner>)],
     target_dt: f64,
     cv: &'a ConstantVelocity2,
     assoc: &'a AssocImpl,
@@ -390,6 +434,55 @@ struct EpochOut {
     explained: Vec<f64>,
     /// β_jl (times ψ_l in `Jipda`), slots × detections.
     beta: DMatrix<f64>,
+}
+
+/// A previous-epoch detection in the map frame (mean, covariance) and the time since it [s].
+#[derive(Debug, Clone, Copy)]
+struct InitPartner {
+    p: Vector2<f64>,
+    cov: Matrix2<f64>,
+    dt: f64,
+}
+
+/// Two-point initiation (spec A19): state [p_k, (p_k − p_{k−1})/Δt] with the covariance of that
+/// linear map of the two independent points, then fused (Kalman update, H = [0 I]) with the
+/// velocity prior N(0, σ_v0² I) of §2.12.
+fn two_point_state(
+    p: Vector2<f64>,
+    cov: Matrix2<f64>,
+    prev: &InitPartner,
+    sigma_v0: f64,
+) -> Result<Gaussian<4>, SlamotError> {
+    two_point_gaussian(p, cov, prev.p, prev.cov, prev.dt, sigma_v0)
+}
+
+/// [`two_point_state`] on plain values (shared with the EKF baseline).
+pub(crate) fn two_point_gaussian(
+    p: Vector2<f64>,
+    cov: Matrix2<f64>,
+    prev_p: Vector2<f64>,
+    prev_cov: Matrix2<f64>,
+    dt: f64,
+    sigma_v0: f64,
+) -> Result<Gaussian<4>, SlamotError> {
+    let v = (p - prev_p) / dt;
+    let mut m = Vector4::new(p.x, p.y, v.x, v.y);
+    let mut c = SMatrix::<f64, 4, 4>::zeros();
+    c.fixed_view_mut::<2, 2>(0, 0).copy_from(&cov);
+    c.fixed_view_mut::<2, 2>(0, 2).copy_from(&(cov / dt));
+    c.fixed_view_mut::<2, 2>(2, 0).copy_from(&(cov / dt));
+    c.fixed_view_mut::<2, 2>(2, 2)
+        .copy_from(&((cov + prev_cov) / (dt * dt)));
+    // fuse with the prior v ~ N(0, σ_v0² I): z = 0, H = [0 I], R = σ_v0² I
+    let s = c.fixed_view::<2, 2>(2, 2).into_owned() + Matrix2::identity() * sigma_v0 * sigma_v0;
+    let s_inv = s.try_inverse().ok_or(CoreError::NotPositiveDefinite {
+        what: "two-point initiation covariance",
+    })?;
+    let k = c.fixed_view::<4, 2>(0, 2).into_owned() * s_inv;
+    m -= k * Vector2::new(m[2], m[3]);
+    c -= k * c.fixed_view::<2, 4>(2, 0).into_owned();
+    let c = (c + c.transpose()) * 0.5;
+    Ok(Gaussian::try_new(m, c)?)
 }
 
 fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
@@ -425,16 +518,27 @@ fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
     let mut explained = vec![0.0; nk];
     let cvm = RangeBearingCv { point: rb };
     if ctx.init_targets {
-        for (l, z) in ctx.targets.iter().enumerate() {
+        let mut beta = DMatrix::zeros(ctx.init_sel.len(), nk);
+        for (l, (j, partner)) in ctx.init_sel.iter().enumerate() {
+            let z = &ctx.targets[*j];
+            let one = cvm.initialise_with_velocity(z, cfg.sigma_v0)?;
+            let est = match partner {
+                None => one,
+                Some(prev) => {
+                    let pos = Vector2::new(one.mean[0], one.mean[1]);
+                    let cov = one.cov.fixed_view::<2, 2>(0, 0).into_owned();
+                    two_point_state(pos, cov, prev, cfg.sigma_v0)?
+                }
+            };
             p.targets.push(TargetSlot {
                 id: TrackId(l as u32 + 1),
-                est: cvm.initialise_with_velocity(z, cfg.sigma_v0)?,
+                est,
                 existence: 1.0,
             });
-            explained[l] = 1.0;
+            explained[*j] = 1.0;
+            beta[(l, *j)] = 1.0;
         }
         p.log_w += log_w;
-        let beta = DMatrix::from_fn(nk, nk, |l, j| if l == j { 1.0 } else { 0.0 });
         return Ok(EpochOut { explained, beta });
     }
     let n = p.targets.len();
@@ -561,7 +665,12 @@ pub struct SlamotTracker<S> {
     last_explained: Vec<f64>,
     last_beta: DMatrix<f64>,
     last_beta_ids: Vec<TrackId>,
+    /// Previous epoch's target detections in the map frame (two-point initiation): time, points.
+    prev_target_pts: Option<(f64, MapPoints)>,
 }
+
+/// Detections placed in the map frame: (mean, covariance) per detection.
+pub(crate) type MapPoints = Vec<(Vector2<f64>, Matrix2<f64>)>;
 
 /// The default landmark store: quarry-filter's persistent Arc tree (O(1) particle copy,
 /// O(log M) landmark update).
@@ -618,8 +727,47 @@ where
             last_explained: Vec::new(),
             last_beta: DMatrix::zeros(0, 0),
             last_beta_ids: Vec::new(),
+            prev_target_pts: None,
             cfg,
         })
+    }
+
+    /// A tracker that starts from a known landmark map (e.g. a previous session's), shared by
+    /// every particle: the store is built once and cloned into each particle (O(1) per particle
+    /// for the persistent tree, O(M) for the flat store). Detections of these landmark ids are
+    /// then updates, not initialisations. Duplicate ids or non-finite / non-PD landmarks are
+    /// errors.
+    pub fn with_prior_map(
+        cfg: SlamotConfig,
+        initial: Pose2,
+        seed: u64,
+        landmarks: &[(LandmarkId, Gaussian<2>)],
+    ) -> Result<Self, SlamotError> {
+        let mut t = Self::with_store(cfg, initial, seed)?;
+        let mut store: S = std::iter::empty().collect();
+        for (ext, g) in landmarks {
+            if !(g.mean.iter().chain(g.cov.iter()).all(|v| v.is_finite())) {
+                return Err(CoreError::NonFinite {
+                    what: "prior landmark",
+                }
+                .into());
+            }
+            Gaussian::try_new(g.mean, g.cov)?;
+            if t.lm_index.contains_key(ext) {
+                return Err(SlamotError::Config(format!(
+                    "prior map: landmark id {} given twice",
+                    ext.0
+                )));
+            }
+            let id = LandmarkId(t.lm_external.len() as u32);
+            t.lm_index.insert(*ext, id);
+            t.lm_external.push(*ext);
+            store.push(*g);
+        }
+        for p in &mut t.particles {
+            p.map = store.clone();
+        }
+        Ok(t)
     }
 
     /// The configuration.
@@ -782,8 +930,12 @@ where
             .iter()
             .map(|z| Vector2::new(z[0], z[1]))
             .collect();
-        let init_targets =
-            !cfg.track_management && !self.targets_initialised && targets.len() == cfg.n_targets;
+        let init_sel = if cfg.track_management || self.targets_initialised {
+            Vec::new()
+        } else {
+            self.select_init(&targets, &r)?
+        };
+        let init_targets = !init_sel.is_empty();
         let target_dt = self.last_target_t.map_or(0.0, |t0| self.t - t0);
         let cv = ConstantVelocity2::dwna(cfg.target_sigma_a.max(1e-12))?;
         let jpda = Jpda::new(cfg.p_detect, cfg.p_gate, cfg.clutter_density)?;
@@ -800,6 +952,7 @@ where
             landmarks: &lms,
             targets: &targets,
             init_targets,
+            init_sel: &init_sel,
             target_dt,
             cv: &cv,
             assoc: &assoc,
@@ -873,6 +1026,82 @@ where
             deaths,
         };
         Ok(())
+    }
+
+    /// Which detections create the slots this epoch (empty: not yet), spec §2.12 / A19.
+    fn select_init(
+        &mut self,
+        targets: &[Vector2<f64>],
+        r: &Matrix2<f64>,
+    ) -> Result<Vec<(usize, Option<InitPartner>)>, SlamotError> {
+        let n = self.cfg.n_targets;
+        match self.cfg.target_init {
+            TargetInit::FirstN => Ok(if targets.len() == n {
+                (0..n).map(|j| (j, None)).collect()
+            } else {
+                Vec::new()
+            }),
+            TargetInit::TwoPoint { max_speed } => {
+                // weighted-mean pose of the (already propagated) particles
+                let (mut x, mut y, mut c, mut s) = (0.0, 0.0, 0.0, 0.0);
+                for (p, wi) in self.particles.iter().zip(&self.weights) {
+                    x += wi * p.pose.x;
+                    y += wi * p.pose.y;
+                    c += wi * p.pose.theta.cos();
+                    s += wi * p.pose.theta.sin();
+                }
+                let rb = RangeBearing {
+                    sensor: Pose2::new(x, y, s.atan2(c)),
+                    r: *r,
+                };
+                let mut pts = Vec::with_capacity(targets.len());
+                for z in targets {
+                    let g = rb.initialise(z)?;
+                    pts.push((g.mean, g.cov));
+                }
+                let mut sel = Vec::new();
+                if let Some((t0, prev)) = &self.prev_target_pts {
+                    let dt = self.t - t0;
+                    if dt > 0.0 {
+                        // all gated (current, previous) pairs, nearest first, exclusive
+                        let mut pairs = Vec::new();
+                        for (j, (pj, cj)) in pts.iter().enumerate() {
+                            for (i, (pi, ci)) in prev.iter().enumerate() {
+                                let d = (pj - pi).norm();
+                                let gate = max_speed * dt + 3.0 * (cj.trace() + ci.trace()).sqrt();
+                                if d <= gate {
+                                    pairs.push((d, j, i));
+                                }
+                            }
+                        }
+                        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+                        let mut used_j = vec![false; pts.len()];
+                        let mut used_i = vec![false; prev.len()];
+                        for (_, j, i) in pairs {
+                            if !used_j[j] && !used_i[i] {
+                                used_j[j] = true;
+                                used_i[i] = true;
+                                sel.push((
+                                    j,
+                                    Some(InitPartner {
+                                        p: prev[i].0,
+                                        cov: prev[i].1,
+                                        dt,
+                                    }),
+                                ));
+                            }
+                        }
+                        sel.sort_by_key(|(j, _)| *j);
+                    }
+                }
+                self.prev_target_pts = Some((self.t, pts));
+                if sel.len() == n {
+                    Ok(sel)
+                } else {
+                    Ok(Vec::new())
+                }
+            }
+        }
     }
 
     fn resample(&mut self) -> Result<(), SlamotError> {
@@ -1175,6 +1404,24 @@ where
     S: LandmarkStore<Gaussian<2>> + FromIterator<Gaussian<2>> + Send + Sync,
 {
     let mut tr = SlamotTracker::<S>::with_store(cfg.clone(), initial, filter_seed)?;
+    let mut res = score_frames(frames, dt_control, |stamp, obs| {
+        let reports = tr.step(stamp, obs)?;
+        Ok((tr.pose_estimate(), reports))
+    })?;
+    res.map = tr.map_estimate();
+    let (e, r) = tr.resample_counts();
+    res.resample_rate = if e > 0 { r as f64 / e as f64 } else { 0.0 };
+    Ok(res)
+}
+
+/// Drives a filter over simulated frames and scores it (spec §4.2): `step` runs one control
+/// step and returns the pose estimate and the track reports. `map` and `resample_rate` are left
+/// empty / 0 for the caller.
+pub(crate) fn score_frames(
+    frames: &[quarry_sim::slamot::SlamotFrame],
+    dt_control: f64,
+    mut step: impl FnMut(Stamp, &SlamotObservation) -> Result<(Pose2, Vec<TrackReport>), SlamotError>,
+) -> Result<SimRunResult, SlamotError> {
     let n_true = frames.first().map_or(0, |f| f.truth.targets.len());
     let mut res = SimRunResult {
         robot_err: Vec::new(),
@@ -1193,14 +1440,13 @@ where
     let mut pi: Option<Vec<Option<TrackId>>> = None;
     let start = std::time::Instant::now();
     for f in frames {
-        let reports = tr.step(
+        let (p, reports) = step(
             Stamp::from_frame(f.k, dt_control),
             &SlamotObservation::from(f),
         )?;
         if !f.observe {
             continue;
         }
-        let p = tr.pose_estimate();
         let tp = f.truth.robot;
         res.robot_err.push((p.x - tp.x).hypot(p.y - tp.y));
         res.epoch_t.push(f.t);
@@ -1251,9 +1497,6 @@ where
     }
     let el = start.elapsed().as_secs_f64();
     res.ms_per_step = 1e3 * el / frames.len().max(1) as f64;
-    res.map = tr.map_estimate();
-    let (e, r) = tr.resample_counts();
-    res.resample_rate = if e > 0 { r as f64 / e as f64 } else { 0.0 };
     Ok(res)
 }
 
@@ -1426,12 +1669,9 @@ mod tests {
     #[ignore = "minutes in debug; the reproduction numbers of docs/slamot.md"]
     fn protocol() {
         let runs: u64 = std::env::var("SLAMOT_RUNS").map_or(20, |v| v.parse().unwrap());
-        let clutter = 2.0 / (30.0 * 2.0 * std::f64::consts::PI);
         let s1 = |mode| SlamotConfig {
             association: mode,
-            p_detect: 0.9,
-            clutter_density: clutter,
-            ..SlamotConfig::default()
+            ..SlamotConfig::s1()
         };
         let cases: Vec<(&str, SlamotConfig, SlamotScenarioConfig)> = vec![
             (
@@ -1469,6 +1709,50 @@ mod tests {
                 SlamotScenarioConfig::s1(),
             ),
             (
+                "S1 jpda first-n-init",
+                SlamotConfig {
+                    target_init: TargetInit::FirstN,
+                    ..SlamotConfig::s1()
+                },
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "S0 jpda two-point-init",
+                SlamotConfig {
+                    target_init: TargetInit::TwoPoint { max_speed: 3.0 },
+                    ..SlamotConfig::default()
+                },
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "EKF S0 jpda",
+                SlamotConfig::default(),
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "EKF S0 paper",
+                SlamotConfig {
+                    association: AssociationMode::Paper,
+                    ..SlamotConfig::default()
+                },
+                SlamotScenarioConfig::s0(),
+            ),
+            (
+                "EKF S1 jpda",
+                s1(AssociationMode::Jpda),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "EKF S1 paper",
+                s1(AssociationMode::Paper),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
+                "EKF S1 jipda",
+                s1(AssociationMode::Jipda),
+                SlamotScenarioConfig::s1(),
+            ),
+            (
                 "S1 paper",
                 s1(AssociationMode::Paper),
                 SlamotScenarioConfig::s1(),
@@ -1491,8 +1775,14 @@ mod tests {
             let mut losses = 0;
             let mut rs = 0.0;
             let mut ms = 0.0;
+            // E5: correlation times [s] of the robot and target error series
+            let mut ct = vec![Vec::new(); 4];
             for r in 0..runs {
-                let res = run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles)).unwrap();
+                let res = if name.starts_with("EKF") {
+                    crate::ekf_slamot::run_simulated_ekf(&cfg, &scen, r).unwrap()
+                } else {
+                    run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles)).unwrap()
+                };
                 let (m, v) = mean_var(&res.robot_err);
                 rm.push(m);
                 rv.push(v);
@@ -1502,6 +1792,15 @@ mod tests {
                     tv[l].push(v);
                 }
                 losses += usize::from(res.swap_or_loss);
+                let dt_z = scen.dt_observe();
+                for (i, e) in std::iter::once(&res.robot_err)
+                    .chain(&res.target_err)
+                    .enumerate()
+                {
+                    if let Ok(Some(t)) = quarry_eval::position::correlation_time(e, dt_z) {
+                        ct[i].push(t);
+                    }
+                }
                 rs += res.resample_rate;
                 ms += res.ms_per_step;
             }
@@ -1522,6 +1821,17 @@ mod tests {
                 mean_var(&tv[2]).0,
                 rs / runs as f64,
                 ms / runs as f64
+            );
+            eprintln!(
+                "{name}: E5 correlation time [s] robot {:.2} targets {:.2} {:.2} {:.2} (runs with a value: {} {} {} {})",
+                mean_var(&ct[0]).0,
+                mean_var(&ct[1]).0,
+                mean_var(&ct[2]).0,
+                mean_var(&ct[3]).0,
+                ct[0].len(),
+                ct[1].len(),
+                ct[2].len(),
+                ct[3].len()
             );
         }
         if let Ok(ns) = std::env::var("SLAMOT_SWEEP") {
@@ -1551,6 +1861,108 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Spec test 28: S1 (P_D 0.9, Poisson(2) clutter), `Jpda`, N = 50, 20 runs: at most 2 runs
+    /// lose a target. With the spec's first-n initiation 10 of these 20 runs lose one (a clutter
+    /// point among the first 3 detections); two-point initiation (A19) loses none (measured 0/20).
+    #[test]
+    #[cfg_attr(
+        debug_assertions,
+        ignore = "20 runs: seconds in release, minutes in debug"
+    )]
+    fn s1_stress_at_most_two_losses() {
+        let scen = SlamotScenarioConfig::s1();
+        let cfg = SlamotConfig::s1();
+        let mut losses = 0;
+        let mut bad_init = 0;
+        for r in 0..20 {
+            let res = run_simulated(&cfg, &scen, r, filter_seed(r, 50)).unwrap();
+            losses += usize::from(res.swap_or_loss);
+            bad_init += usize::from(res.target_err.iter().any(|e| e[0] > 3.0));
+            let (er, _) = mean_var(&res.robot_err);
+            assert!(er < 0.452, "run {r}: robot {er}");
+        }
+        assert!(losses <= 2, "{losses}/20 runs lost a target");
+        assert_eq!(bad_init, 0, "a slot started on clutter");
+    }
+
+    #[test]
+    fn prior_map_is_shared_and_updated() {
+        let g = |x: f64, y: f64| Gaussian::try_new(Vector2::new(x, y), Matrix2::identity() * 0.01);
+        let prior: Vec<(LandmarkId, Gaussian<2>)> = (0..300)
+            .map(|i| (LandmarkId(1000 + i), g(f64::from(i) * 0.1, 5.0).unwrap()))
+            .collect();
+        let cfg = SlamotConfig {
+            particles: 8,
+            ..SlamotConfig::default()
+        };
+        let mut t = SlamotTracker::<DefaultStore>::with_prior_map(
+            cfg.clone(),
+            Pose2::identity(),
+            3,
+            &prior,
+        )
+        .unwrap();
+        let ps = t.particles();
+        assert_eq!(ps[0].map.unshared_nodes(&ps[7].map), 0);
+        assert_eq!(t.map_estimate().len(), 300);
+        // a detection of a prior landmark is an update: the map does not grow
+        let z = [5.0, std::f64::consts::FRAC_PI_2];
+        let obs = SlamotObservation {
+            dt: 0.025,
+            odometry: (0.0, 0.0),
+            observe: true,
+            landmark_obs: vec![(LandmarkId(1000), z)],
+            target_obs: vec![],
+        };
+        t.step(Stamp::from_frame(1, 0.025), &obs).unwrap();
+        assert_eq!(t.map_estimate().len(), 300);
+        let dup = vec![prior[0], prior[0]];
+        assert!(matches!(
+            SlamotTracker::<DefaultStore>::with_prior_map(cfg.clone(), Pose2::identity(), 3, &dup),
+            Err(SlamotError::Config(_))
+        ));
+        let nan = vec![(
+            LandmarkId(1),
+            Gaussian::new_unchecked(Vector2::new(f64::NAN, 0.0), Matrix2::identity()),
+        )];
+        assert!(
+            SlamotTracker::<FlatStore>::with_prior_map(cfg, Pose2::identity(), 3, &nan).is_err()
+        );
+    }
+
+    #[test]
+    fn two_point_initiation() {
+        // exact points, a vague velocity prior: the velocity is the difference quotient
+        let cov = Matrix2::identity() * 1e-6;
+        let prev = InitPartner {
+            p: Vector2::new(1.0, 2.0),
+            cov,
+            dt: 0.2,
+        };
+        let g = two_point_state(Vector2::new(1.2, 1.9), cov, &prev, 100.0).unwrap();
+        assert!((g.mean[2] - 1.0).abs() < 1e-6 && (g.mean[3] + 0.5).abs() < 1e-6);
+        assert!((g.mean[0] - 1.2).abs() < 1e-9);
+        // noisy points, a tight prior: the velocity shrinks towards 0 and its variance is
+        // below both the prior's and the difference quotient's
+        let cov = Matrix2::identity() * 0.09;
+        let prev = InitPartner { cov, ..prev };
+        let g = two_point_state(Vector2::new(1.2, 1.9), cov, &prev, 1.5).unwrap();
+        let v_diff = 2.0 * 0.09 / 0.04;
+        assert!(g.mean[2] > 0.0 && g.mean[2] < 1.0);
+        assert!(g.cov[(2, 2)] < 1.5 * 1.5 && g.cov[(2, 2)] < v_diff);
+        assert!(g.cov[(0, 0)] <= 0.09 + 1e-12);
+        assert!((g.cov - g.cov.transpose()).amax() < 1e-12);
+        assert!(g.cov.cholesky().is_some());
+        // a bad configuration is an error
+        let bad = SlamotConfig {
+            target_init: TargetInit::TwoPoint {
+                max_speed: f64::NAN,
+            },
+            ..SlamotConfig::default()
+        };
+        assert!(bad.validate().is_err());
     }
 
     #[test]

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Subcommand, ValueEnum};
 use plotters::prelude::*;
 use quarry_sim::slamot::SlamotScenarioConfig;
+use quarry_trackers::ekf_slamot::run_simulated_ekf;
 use quarry_trackers::slamot::{
     AssociationMode, SimRunResult, SlamotConfig, TargetWeight, filter_seed, mean_var,
     mrclam_config, run_mrclam, run_simulated,
@@ -31,6 +32,16 @@ pub enum ModeArg {
     Paper,
     /// JIPDA with existence.
     Jipda,
+}
+
+/// Which filter runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum FilterArg {
+    /// The Rao-Blackwellized particle filter of the paper (PFJPDA_SLAMOT).
+    #[default]
+    Rbpf,
+    /// The joint-EKF baseline (the paper's reference [8]); deterministic, --particles ignored.
+    Ekf,
 }
 
 /// Built-in scenario.
@@ -62,7 +73,7 @@ births and deaths); scored against Vicon.
 
 JSON (--json): {\"robot_err_mean\", \"robot_err_var\", \"target_err_mean\": [..], \
 \"target_err_var\": [..], \"losses\", \"ms_per_step\", \"runs\", \"particles\", \"mode\", \
-\"scenario\", \"paper\"}; with --mrclam also \"map_err\", \"ospa\", \"assoc_accuracy\".
+\"scenario\", \"filter\", \"paper\"}; with --mrclam also \"map_err\", \"ospa\", \"assoc_accuracy\".
 
 --out DIR writes trajectories_run<r>.csv, map_run<r>.csv and fig1.png (the median run like the \
 paper's Fig. 1: truth dashed, estimates solid, true landmarks as crosses, estimated landmarks as \
@@ -71,6 +82,7 @@ dots; robot black, targets red/green/blue; no text).
 EXAMPLES:
   quarry slamot --runs 20 --particles 50 --json
   quarry slamot --mode paper --scenario s1 --runs 20
+  quarry slamot --filter ekf --runs 20 --json
   quarry slamot --mrclam ../shared/data/mrclam-6 --robot 1 --out out/
   quarry slamot sweep --particles 20,50,100,200 --runs 20 --out out/"
 )]
@@ -93,6 +105,9 @@ pub struct SlamotArgs {
     /// Use the paper's eq. (11) target weight (ablation; default: the mode's own).
     #[arg(long)]
     pub eq11: bool,
+    /// Filter: the RBPF (default) or the joint-EKF baseline.
+    #[arg(long, value_enum, default_value_t = FilterArg::Rbpf)]
+    pub filter: FilterArg,
     /// Built-in scenario.
     #[arg(long, value_enum, default_value_t = ScenarioArg::S0)]
     pub scenario: ScenarioArg,
@@ -175,6 +190,7 @@ struct RunSummary {
 #[derive(Debug, Serialize)]
 struct Report {
     scenario: String,
+    filter: String,
     mode: String,
     particles: usize,
     runs: u64,
@@ -202,30 +218,26 @@ fn mode_of(m: ModeArg) -> AssociationMode {
     }
 }
 
-/// The filter configuration for a built-in scenario (S1: the filter knows P_D 0.9 and the
-/// clutter rate, spec §4.3 E6).
+/// The filter configuration for a built-in scenario (S1: [`SlamotConfig::s1`], the filter
+/// knows P_D 0.9 and the clutter rate, spec §4.3 E6, and initiates targets from two points).
 pub fn sim_config(
     particles: usize,
     mode: ModeArg,
     scenario: ScenarioArg,
     eq11: bool,
 ) -> (SlamotConfig, SlamotScenarioConfig) {
+    let (base, scen) = match scenario {
+        ScenarioArg::S0 => (SlamotConfig::default(), SlamotScenarioConfig::s0()),
+        ScenarioArg::S1 => (SlamotConfig::s1(), SlamotScenarioConfig::s1()),
+    };
     let mut cfg = SlamotConfig {
         particles,
         association: mode_of(mode),
-        ..SlamotConfig::default()
+        ..base
     };
     if eq11 {
         cfg.target_weight = TargetWeight::PaperEq11;
     }
-    let scen = match scenario {
-        ScenarioArg::S0 => SlamotScenarioConfig::s0(),
-        ScenarioArg::S1 => {
-            cfg.p_detect = 0.9;
-            cfg.clutter_density = 2.0 / (30.0 * 2.0 * std::f64::consts::PI);
-            SlamotScenarioConfig::s1()
-        }
-    };
     (cfg, scen)
 }
 
@@ -269,7 +281,10 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
     let mut results = Vec::new();
     for i in 0..args.runs {
         let r = args.seed + i;
-        let res = run_simulated(&cfg, &scen, r, filter_seed(r, args.particles))?;
+        let res = match args.filter {
+            FilterArg::Rbpf => run_simulated(&cfg, &scen, r, filter_seed(r, args.particles))?,
+            FilterArg::Ekf => run_simulated_ekf(&cfg, &scen, r)?,
+        };
         if let Some(dir) = &args.out {
             write_sim_csv(dir, r, &res)?;
         }
@@ -293,6 +308,7 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
     let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
     let report = Report {
         scenario: format!("{:?}", args.scenario).to_lowercase(),
+        filter: format!("{:?}", args.filter).to_lowercase(),
         mode: format!("{:?}", args.mode).to_lowercase(),
         particles: args.particles,
         runs: args.runs,
@@ -705,6 +721,13 @@ fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>], titles: &[&str]) -> Resul
 }
 
 fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
+    if args.filter == FilterArg::Ekf {
+        return Err(
+            "--filter ekf needs a known target count; MRCLAM runs use JIPDA births and \
+                    deaths (the number of robots in view varies): use the RBPF"
+                .into(),
+        );
+    }
     let run = quarry_sim::mrclam::load(dir, args.robot)?;
     let mut cfg = mrclam_config(args.particles);
     if args.mode != ModeArg::Jipda {
@@ -763,6 +786,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
             "mrclam robot {} (targets: robots {:?})",
             args.robot, run.target_robots
         ),
+        filter: "rbpf".into(),
         mode: "jipda".into(),
         particles: args.particles,
         runs: args.runs,
