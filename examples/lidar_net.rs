@@ -43,7 +43,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         run.frames_tracked, st.accepted, st.dup, st.late, st.lost
     );
     if let Some((k, t, rows)) = run.tracks.last() {
-        println!("frame {k} (t = {:.2} s): {} tracks", t.as_secs_f64(), rows.len());
+        println!(
+            "frame {k} (t = {:.2} s): {} tracks",
+            t.as_secs_f64(),
+            rows.len()
+        );
         for r in rows {
             println!("  track {}: ({:.2}, {:.2}) m", r.id, r.x, r.y);
         }

@@ -99,7 +99,11 @@ fn three_node_processes_and_the_server_reproduce_the_in_process_run() {
     // the in-process run (default wifi network: loss, duplicates, delay spikes)
     let mut args = vec![s("lidar")];
     args.extend(room.clone());
-    args.extend([s("--out"), dir.join("local").display().to_string(), s("--json")]);
+    args.extend([
+        s("--out"),
+        dir.join("local").display().to_string(),
+        s("--json"),
+    ]);
     let o = Command::new(exe).args(&args).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
@@ -121,24 +125,45 @@ fn three_node_processes_and_the_server_reproduce_the_in_process_run() {
     // the server listens once its session is open
     let t0 = Instant::now();
     while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(t0.elapsed() < Duration::from_secs(60), "server never listened");
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "server never listened"
+        );
         if let Some(st) = procs.0[0].1.try_wait().unwrap() {
             panic!("server exited early: {st}");
         }
         std::thread::sleep(Duration::from_millis(50));
     }
     for k in 0..3 {
-        let mut args = vec![s("lidar-node"), s("--clock"), s("virtual"), s("--scanner"), k.to_string()];
+        let mut args = vec![
+            s("lidar-node"),
+            s("--clock"),
+            s("virtual"),
+            s("--scanner"),
+            k.to_string(),
+        ];
         args.extend(room.clone());
-        args.extend([s("--connect"), endpoint.clone(), s("--wait-server"), s("60"), s("--json")]);
+        args.extend([
+            s("--connect"),
+            endpoint.clone(),
+            s("--wait-server"),
+            s("60"),
+            s("--json"),
+        ]);
         procs.0.push((format!("node {k}"), spawn(exe, &args)));
     }
     let outs = wait_all(&mut procs, Duration::from_secs(300));
 
     let local = read(&dir.join("local/tracks.csv"));
     let net = read(&dir.join("net/tracks.csv"));
-    assert!(local.lines().count() > 50, "too few track rows to compare:\n{local}");
-    assert_eq!(net, local, "networked tracks differ from the in-process run");
+    assert!(
+        local.lines().count() > 50,
+        "too few track rows to compare:\n{local}"
+    );
+    assert_eq!(
+        net, local,
+        "networked tracks differ from the in-process run"
+    );
     assert_eq!(
         read(&dir.join("net/tracks_mot.txt")),
         read(&dir.join("local/tracks_mot.txt"))

@@ -54,9 +54,7 @@ pub use error::{EnvelopeError, NetError};
 pub use node::{
     CsvSource, NodeSummary, ScanSource, SimSource, WallNodeOptions, run_sim_node, run_wall_node,
 };
-pub use server::{
-    ServerRun, SensorSpec, WallServerOptions, run_sim_server, run_wall_server,
-};
+pub use server::{SensorSpec, ServerRun, WallServerOptions, run_sim_server, run_wall_server};
 pub use transport::{LocalBus, Received, Subscription, Transport, key_matches, keys};
 #[cfg(feature = "zenoh")]
 pub use zenoh_transport::{ZenohOptions, ZenohTransport};

@@ -12,16 +12,18 @@
 //!   transport), and published as plain §7.1 datagrams; the real network's delays, losses and
 //!   duplicates are what the server's frame assembler handles.
 
+use crate::NetError;
 use crate::envelope::{EndOfStream, SimMessage, SimStep};
 use crate::transport::{Subscription, Transport, keys};
-use crate::NetError;
 use quarry_cloud::csv_scans::ScanCsvReader;
 use quarry_cloud::net::ClockSync;
 use quarry_cloud::net::SyncMode;
 use quarry_cloud::net::wire::{Header, Hello, Kind, Message, Payload};
 use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
 use quarry_sim::lidar_room::{RoomEvent, Runner, Scenario};
-use quarry_trackers::lidar_people::{ClientPipeline, LidarPeopleConfig, background_of, encode_dynamic};
+use quarry_trackers::lidar_people::{
+    ClientPipeline, LidarPeopleConfig, background_of, encode_dynamic,
+};
 use serde::Serialize;
 use std::io::Read;
 use std::time::{Duration, Instant};

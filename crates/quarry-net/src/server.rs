@@ -11,9 +11,9 @@
 //! stamps arrivals with its own monotonic clock, answers the nodes' sync requests, and polls
 //! the assembler every few milliseconds.
 
+use crate::NetError;
 use crate::envelope::{SimMessage, SimStep, TrackMessage};
 use crate::transport::{Transport, keys, sensor_of_key};
-use crate::NetError;
 use quarry_cloud::net::FusionStats;
 use quarry_cloud::net::wire::{Header, Kind, Message, Payload};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
@@ -98,7 +98,11 @@ impl Core {
     fn finish(mut self) -> ServerRun {
         let a = &self.server.fusion.assembler;
         self.run.stats = a.stats();
-        self.run.min_latency_us = self.ids.iter().map(|&s| (s.0, a.min_latency_us(s))).collect();
+        self.run.min_latency_us = self
+            .ids
+            .iter()
+            .map(|&s| (s.0, a.min_latency_us(s)))
+            .collect();
         self.run
     }
 }
@@ -249,7 +253,10 @@ pub fn run_sim_server(
             SimMessage::Step(s) => s.sensor,
             SimMessage::End(e) => e.sensor,
         };
-        let Some(k) = core.index(sensor).filter(|_| sensor_of_key(&r.key) == Some(sensor)) else {
+        let Some(k) = core
+            .index(sensor)
+            .filter(|_| sensor_of_key(&r.key) == Some(sensor))
+        else {
             core.run.rejected += 1;
             continue;
         };
@@ -339,7 +346,10 @@ pub fn run_wall_server(
             let sensor = sensor_of_key(&r.key);
             if r.key.starts_with("quarry/lidar/scan/") {
                 last_rx = Some(Instant::now());
-                core.server.fusion.assembler.on_datagram(&r.payload, arrival);
+                core.server
+                    .fusion
+                    .assembler
+                    .on_datagram(&r.payload, arrival);
             } else if r.key.starts_with("quarry/lidar/sync/req/") {
                 if let Ok(m) = Message::decode(&r.payload)
                     && m.header.kind == Kind::SyncRequest

@@ -168,7 +168,10 @@ mod tests {
         assert!(key_matches("a/**", "a/b/c"));
         assert!(key_matches("**/c", "a/b/c"));
         assert!(!key_matches("a/b", "a/b/c"));
-        assert!(key_matches(keys::SCAN_ALL, &keys::scan(quarry_core::SensorId(3))));
+        assert!(key_matches(
+            keys::SCAN_ALL,
+            &keys::scan(quarry_core::SensorId(3))
+        ));
         assert_eq!(
             sensor_of_key("quarry/lidar/scan/3"),
             Some(quarry_core::SensorId(3))

@@ -46,7 +46,8 @@ impl ZenohTransport {
     pub fn open(opts: &ZenohOptions) -> Result<Self, NetError> {
         let mut c = zenoh::Config::default();
         let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-            c.insert_json5(k, v).map_err(|e| zerr(&format!("config {k}"), e))
+            c.insert_json5(k, v)
+                .map_err(|e| zerr(&format!("config {k}"), e))
         };
         set(&mut c, "mode", "\"peer\"")?;
         set(&mut c, "listen/endpoints", &json_list(&opts.listen)?)?;
@@ -54,7 +55,11 @@ impl ZenohTransport {
         set(
             &mut c,
             "scouting/multicast/enabled",
-            if opts.multicast_scouting { "true" } else { "false" },
+            if opts.multicast_scouting {
+                "true"
+            } else {
+                "false"
+            },
         )?;
         let session = zenoh::open(c).wait().map_err(|e| zerr("open", e))?;
         Ok(Self { session })

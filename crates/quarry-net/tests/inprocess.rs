@@ -1,16 +1,19 @@
 //! Nodes and server as threads over the in-process transport.
 
+use quarry_core::TimeUs;
 use quarry_net::{
     LocalBus, SensorSpec, SimSource, WallNodeOptions, WallServerOptions, run_sim_node,
     run_sim_server, run_wall_node, run_wall_server,
 };
-use quarry_core::TimeUs;
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
 use quarry_trackers::lidar_people::{LidarPeopleConfig, run_room_default};
 use std::time::Duration;
 
 fn sensors(sc: &Scenario) -> Vec<SensorSpec> {
-    sc.scanners.iter().map(|s| (s.id, s.pose, s.geometry)).collect()
+    sc.scanners
+        .iter()
+        .map(|s| (s.id, s.pose, s.geometry))
+        .collect()
 }
 
 fn networked(sc: &Scenario, cfg: &LidarPeopleConfig) -> quarry_net::ServerRun {
@@ -34,7 +37,10 @@ fn virtual_time_network_run_equals_the_in_process_run() {
     // the default wifi network: loss, duplicates and delay spikes (late scans) are replayed
     let cfg = LidarPeopleConfig::faithful();
     for (sc, name) in [
-        (Scenario::band(SpeedBand::Mid, 2, 7).with_duration(10.0), "wifi"),
+        (
+            Scenario::band(SpeedBand::Mid, 2, 7).with_duration(10.0),
+            "wifi",
+        ),
         (
             Scenario::band(SpeedBand::Fast, 2, 8)
                 .with_duration(9.0)
@@ -51,8 +57,16 @@ fn virtual_time_network_run_equals_the_in_process_run() {
             "{name}: the run has no tracks, the comparison would be empty"
         );
         assert_eq!(net.tracks, local.tracks, "{name}");
-        assert!(net.stats.dup > 0 || name == "wifi", "{name}: {:?}", net.stats);
-        assert!(net.stats.lost > 0, "{name}: the network lost nothing: {:?}", net.stats);
+        assert!(
+            net.stats.dup > 0 || name == "wifi",
+            "{name}: {:?}",
+            net.stats
+        );
+        assert!(
+            net.stats.lost > 0,
+            "{name}: the network lost nothing: {:?}",
+            net.stats
+        );
         assert_eq!(net.rejected, 0);
     }
 }
@@ -125,7 +139,10 @@ fn wall_clock_nodes_sync_and_the_server_fuses_every_scan() {
         },
     )
     .unwrap();
-    let sums: Vec<_> = nodes.into_iter().map(|n| n.join().unwrap().unwrap()).collect();
+    let sums: Vec<_> = nodes
+        .into_iter()
+        .map(|n| n.join().unwrap().unwrap())
+        .collect();
     for s in &sums {
         assert_eq!(s.scans, 60);
         assert!(s.sync_replies >= 2, "{s:?}");

@@ -249,7 +249,10 @@ fn print_summary(s: &LidarSummary) {
     );
 }
 
-pub(crate) fn write_tracks(path: &Path, tracks: &[(u64, TimeUs, Vec<LidarTrack>)]) -> Result<(), String> {
+pub(crate) fn write_tracks(
+    path: &Path,
+    tracks: &[(u64, TimeUs, Vec<LidarTrack>)],
+) -> Result<(), String> {
     let mut s =
         String::from("frame,t_us,track_id,x,y,alpha,vx,vy,support,rms,born,gate_replaced\n");
     for (k, t, rows) in tracks {
@@ -276,7 +279,10 @@ pub(crate) fn write_tracks(path: &Path, tracks: &[(u64, TimeUs, Vec<LidarTrack>)
 
 /// MOTChallenge-style rows with world coordinates: `frame,id,-1,-1,-1,-1,conf,x,y,z`
 /// (1-based frame; the 3-D world columns carry x, y in metres, z = 0).
-pub(crate) fn write_mot(path: &Path, tracks: &[(u64, TimeUs, Vec<LidarTrack>)]) -> Result<(), String> {
+pub(crate) fn write_mot(
+    path: &Path,
+    tracks: &[(u64, TimeUs, Vec<LidarTrack>)],
+) -> Result<(), String> {
     let mut s = String::new();
     for (k, _, rows) in tracks {
         for r in rows {

@@ -444,7 +444,10 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, String> {
             .collect(),
         Some(p) => {
             if virtual_time {
-                return Err("--sensors needs --clock wall (virtual time simulates the room's scanners)".into());
+                return Err(
+                    "--sensors needs --clock wall (virtual time simulates the room's scanners)"
+                        .into(),
+                );
             }
             let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
             let list: Vec<SensorFileEntry> =
