@@ -159,18 +159,48 @@ pub struct NodeSummary {
     pub client_ms_per_scan: f64,
 }
 
-/// Waits until the server's ready beacon is heard (so its subscriptions exist).
-pub fn wait_for_server(transport: &dyn Transport, timeout: Duration) -> Result<(), NetError> {
-    let mut sub = transport.subscribe(keys::SERVER_READY)?;
+/// Joins the server: publishes a join request every 100 ms until the server's welcome arrives
+/// (so the route from this node to the server's subscriptions exists before any data is sent).
+pub fn wait_for_server(
+    transport: &dyn Transport,
+    id: SensorId,
+    timeout: Duration,
+) -> Result<(), NetError> {
+    let mut sub = transport.subscribe(&keys::welcome(id))?;
     let t0 = Instant::now();
     while t0.elapsed() < timeout {
+        transport.publish(&keys::join(id), b"join")?;
         if sub.recv_timeout(Duration::from_millis(100))?.is_some() {
             return Ok(());
         }
     }
     Err(NetError::Timeout(format!(
-        "no server beacon on {} within {:.1} s",
-        keys::SERVER_READY,
+        "the server did not answer the join of sensor {} within {:.1} s",
+        id.0,
+        timeout.as_secs_f64()
+    )))
+}
+
+/// Publishes the end marker until the server acknowledges it (every 200 ms, at most
+/// `timeout`).
+fn finish(
+    transport: &dyn Transport,
+    id: SensorId,
+    end: &SimMessage,
+    timeout: Duration,
+) -> Result<(), NetError> {
+    let mut ack = transport.subscribe(&keys::end_ack(id))?;
+    let bytes = end.encode()?;
+    let t0 = Instant::now();
+    while t0.elapsed() < timeout {
+        transport.publish(&keys::end(id), &bytes)?;
+        if ack.recv_timeout(Duration::from_millis(200))?.is_some() {
+            return Ok(());
+        }
+    }
+    Err(NetError::Timeout(format!(
+        "the server did not acknowledge the end of sensor {} within {:.1} s",
+        id.0,
         timeout.as_secs_f64()
     )))
 }
@@ -190,7 +220,7 @@ pub fn run_sim_node(
     let mut src = SimSource::new(scenario, k)?;
     let id = src.sensor();
     let mut client = ClientPipeline::new(id, background_of(cfg, &src.geometry())?);
-    wait_for_server(transport, wait_server)?;
+    wait_for_server(transport, id, wait_server)?;
     let key = keys::sim(id);
     let mut sum = NodeSummary {
         sensor: id.0,
@@ -225,7 +255,7 @@ pub fn run_sim_node(
         steps: step,
         t_end,
     });
-    transport.publish(&keys::end(id), &end.encode()?)?;
+    finish(transport, id, &end, wait_server)?;
     sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);
     Ok(sum)
 }
@@ -371,7 +401,7 @@ pub fn run_wall_node(
         seq: 0,
         replies: 0,
     };
-    wait_for_server(transport, opts.wait_server)?;
+    wait_for_server(transport, id, opts.wait_server)?;
     let key = keys::scan(id);
     let hello = Message {
         header: Header {
@@ -452,7 +482,7 @@ pub fn run_wall_node(
         steps: u32::try_from(sum.scans).unwrap_or(u32::MAX),
         t_end: last_stamp,
     });
-    transport.publish(&keys::end(id), &end.encode()?)?;
+    finish(transport, id, &end, opts.wait_server)?;
     sum.sync_replies = syncer.replies;
     sum.offset_us = syncer.sync.applied_offset();
     sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);

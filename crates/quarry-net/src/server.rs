@@ -241,6 +241,12 @@ pub fn run_sim_server(
             }
             continue;
         };
+        if r.key.starts_with("quarry/lidar/join/") {
+            if let Some(id) = sensor_of_key(&r.key).filter(|&id| core.index(id).is_some()) {
+                transport.publish(&keys::welcome(id), b"welcome")?;
+            }
+            continue;
+        }
         if !(r.key.starts_with("quarry/lidar/sim/") || r.key.starts_with("quarry/lidar/end/")) {
             continue;
         }
@@ -271,6 +277,7 @@ pub fn run_sim_server(
                     )));
                 }
                 n.end_steps = Some(e.steps);
+                transport.publish(&keys::end_ack(sensor), b"ok")?;
             }
             SimMessage::Step(s) => {
                 if s.t_end != t_end {
@@ -344,7 +351,11 @@ pub fn run_wall_server(
         if let Some(r) = sub.recv_timeout(wait)? {
             let arrival = now();
             let sensor = sensor_of_key(&r.key);
-            if r.key.starts_with("quarry/lidar/scan/") {
+            if r.key.starts_with("quarry/lidar/join/") {
+                if let Some(id) = sensor.filter(|&id| core.index(id).is_some()) {
+                    transport.publish(&keys::welcome(id), b"welcome")?;
+                }
+            } else if r.key.starts_with("quarry/lidar/scan/") {
                 last_rx = Some(Instant::now());
                 core.server
                     .fusion
@@ -381,6 +392,7 @@ pub fn run_wall_server(
                         if let Some(k) = core.index(e.sensor) {
                             ended[k] = true;
                         }
+                        transport.publish(&keys::end_ack(e.sensor), b"ok")?;
                     }
                     _ => core.run.rejected += 1,
                 }

@@ -40,10 +40,24 @@ pub mod keys {
     }
     /// Every end marker.
     pub const END_ALL: &str = "quarry/lidar/end/*";
+    /// The server's acknowledgement of sensor `id`'s end marker (the node exits only after it,
+    /// so nothing it published is lost in its send queue).
+    pub fn end_ack(id: SensorId) -> String {
+        format!("quarry/lidar/endack/{}", id.0)
+    }
     /// The server's track messages ([`crate::TrackMessage`]), one per closed frame.
     pub const TRACKS: &str = "quarry/lidar/tracks";
-    /// The server's liveness beacon (10 Hz): nodes start publishing once they hear it.
+    /// The server's liveness beacon (10 Hz).
     pub const SERVER_READY: &str = "quarry/lidar/server/ready";
+    /// A node asking to join (repeated until welcomed): proves the node-to-server route exists
+    /// before the node publishes data (a pub/sub engine drops what no subscriber matched yet).
+    pub fn join(id: SensorId) -> String {
+        format!("quarry/lidar/join/{}", id.0)
+    }
+    /// The server's answer to [`join`].
+    pub fn welcome(id: SensorId) -> String {
+        format!("quarry/lidar/welcome/{}", id.0)
+    }
 }
 
 /// One received sample.

@@ -66,6 +66,13 @@ impl ZenohTransport {
     }
 }
 
+impl Drop for ZenohTransport {
+    /// Closes the session (flushing what is queued) instead of dropping it at process exit.
+    fn drop(&mut self) {
+        let _ = self.session.close().wait();
+    }
+}
+
 struct ZenohSub {
     sub: Subscriber<FifoChannelHandler<Sample>>,
 }
