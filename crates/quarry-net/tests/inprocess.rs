@@ -79,7 +79,7 @@ fn a_node_running_another_scenario_is_refused() {
     let other = sc.clone().with_duration(3.0);
     let b2 = bus.clone();
     let c2 = cfg.clone();
-    let h = std::thread::spawn(move || run_sim_node(&b2, other, 0, &c2, Duration::from_secs(30)));
+    let h = std::thread::spawn(move || run_sim_node(&b2, other, 0, &c2, Duration::from_secs(3)));
     let r = run_sim_server(
         &bus,
         &sensors(&sc),
