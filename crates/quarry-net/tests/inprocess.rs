@@ -1,4 +1,5 @@
 //! Nodes and server as threads over the in-process transport.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry_core::TimeUs;
 use quarry_net::{
