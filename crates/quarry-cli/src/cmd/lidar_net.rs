@@ -124,7 +124,7 @@ fn open_transport(_: &ZenohArgs) -> Result<Box<dyn Transport>, String> {
 scanner source (scanner --scanner K of the simulated room, or a recorded scan CSV with --scans), runs \
 the scanner's chi-square background model and publishes the dynamic points of every scan over zenoh \
 (keys quarry/lidar/*, see docs/lidar-people.md \"Networked deployment\"). Start the server first; \
-the node waits for its beacon (--wait-server).
+the node retries its join request for --wait-server seconds.
 
 Clock modes (--clock):
   wall     (default) scans are paced in real time (--speed), stamped with the node clock \
