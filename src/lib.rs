@@ -13,6 +13,7 @@
 //! | [`sim`] | quarry-sim | seeded scenario generators with ground truth |
 //! | [`eval`] | quarry-eval | RMSE/NEES, CLEAR MOT, IDF1, HOTA, OSPA/GOSPA |
 //! | [`trackers`] | quarry-trackers | the four papers' trackers |
+//! | [`net`] | quarry-net | networked lidar tracker: transports (in-process, zenoh), nodes, server |
 //!
 //! ```
 //! use quarry::core::{Pose2, Point2};
@@ -25,6 +26,7 @@ pub use quarry_cloud as cloud;
 pub use quarry_core as core;
 pub use quarry_eval as eval;
 pub use quarry_filter as filter;
+pub use quarry_net as net;
 pub use quarry_sim as sim;
 pub use quarry_trackers as trackers;
 pub use quarry_vision as vision;

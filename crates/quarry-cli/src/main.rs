@@ -59,6 +59,8 @@ enum Command {
     Slamot(cmd::slamot::SlamotArgs),
     /// People tracking with distributed 2-D laser scanners (paper 003) in the simulated room.
     Lidar(cmd::lidar::LidarArgs),
+    LidarNode(cmd::lidar_net::LidarNodeArgs),
+    LidarServer(cmd::lidar_net::LidarServerArgs),
     /// SIFT keypoints of an image, or keypoints and matches of two images.
     Sift(cmd::sift::SiftArgs),
     Segment(cmd::segment::SegmentArgs),
@@ -76,6 +78,8 @@ fn main() -> ExitCode {
         Command::Eval(a) => cmd::eval::run(a, &out),
         Command::Slamot(a) => cmd::slamot::run(a, &out),
         Command::Lidar(a) => cmd::lidar::run(a, &out),
+        Command::LidarNode(a) => cmd::lidar_net::run_node(a, &out),
+        Command::LidarServer(a) => cmd::lidar_net::run_server(a, &out),
         Command::Sift(a) => cmd::sift::run(a, &out),
         Command::Segment(a) => cmd::segment::run(a, &out),
         Command::Motion(a) => cmd::motion::run(a, &out),

@@ -495,7 +495,10 @@ fn print_summary(s: &LidarSummary) {
     );
 }
 
-fn write_tracks(path: &Path, tracks: &[(u64, TimeUs, Vec<LidarTrack>)]) -> Result<(), String> {
+pub(crate) fn write_tracks(
+    path: &Path,
+    tracks: &[(u64, TimeUs, Vec<LidarTrack>)],
+) -> Result<(), String> {
     let mut s =
         String::from("frame,t_us,track_id,x,y,alpha,vx,vy,support,rms,born,gate_replaced\n");
     for (k, t, rows) in tracks {
@@ -522,7 +525,10 @@ fn write_tracks(path: &Path, tracks: &[(u64, TimeUs, Vec<LidarTrack>)]) -> Resul
 
 /// MOTChallenge-style rows with world coordinates: `frame,id,-1,-1,-1,-1,conf,x,y,z`
 /// (1-based frame; the 3-D world columns carry x, y in metres, z = 0).
-fn write_mot(path: &Path, tracks: &[(u64, TimeUs, Vec<LidarTrack>)]) -> Result<(), String> {
+pub(crate) fn write_mot(
+    path: &Path,
+    tracks: &[(u64, TimeUs, Vec<LidarTrack>)],
+) -> Result<(), String> {
     let mut s = String::new();
     for (k, _, rows) in tracks {
         for r in rows {

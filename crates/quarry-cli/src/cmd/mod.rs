@@ -6,6 +6,7 @@
 pub mod demo;
 pub mod eval;
 pub mod lidar;
+pub mod lidar_net;
 pub mod motion;
 pub mod rgbd;
 pub mod segment;

@@ -1,0 +1,495 @@
+//! `quarry lidar-node` and `quarry lidar-server`: the networked deployment of the lidar people
+//! tracker (spec 003 §7) over zenoh (feature `zenoh`, on by default).
+
+use crate::output::{CmdResult, Output};
+use clap::Args;
+use quarry_cloud::csv_scans::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
+use quarry_cloud::net::SyncMode;
+use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry_net::{
+    CsvSource, NodeSummary, SensorSpec, ServerRun, SimSource, Transport, WallNodeOptions,
+    WallServerOptions,
+};
+use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
+use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// The simulated room both node and server must agree on (virtual time), and the tracker
+/// configuration.
+#[derive(Args, Debug, Clone)]
+pub struct RoomArgs {
+    /// Walking-speed band of the simulated room: slow, normal, fast.
+    #[arg(long, default_value = "normal")]
+    pub band: String,
+    /// Evaluated frames as in `quarry lidar` (the run lasts 7 s + frames x 50 ms + 0.3 s).
+    #[arg(long, default_value_t = 1200)]
+    pub frames: usize,
+    /// People in the room.
+    #[arg(long, default_value_t = 3)]
+    pub people: u32,
+    /// Seed of the simulated room.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated network (virtual time only): ideal, wifi (default, as `quarry lidar`), bad.
+    #[arg(long, default_value = "wifi")]
+    pub network: String,
+    /// Simulated client clocks (virtual time only): synced (default), skewed,
+    /// skewed_broadcast, skewed_nosync.
+    #[arg(long, default_value = "synced")]
+    pub clock_profile: String,
+    /// Preset: literal, faithful (default) or kf-gnn.
+    #[arg(long, default_value = "faithful")]
+    pub preset: String,
+    /// TOML configuration (missing keys take the preset's values), as `quarry lidar --config`.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// How to reach the other processes.
+#[derive(Args, Debug, Clone)]
+pub struct ZenohArgs {
+    /// zenoh endpoint to listen on (repeatable), e.g. tcp/0.0.0.0:7447.
+    #[arg(long)]
+    pub listen: Vec<String>,
+    /// zenoh endpoint to connect to (repeatable), e.g. tcp/192.168.1.10:7447.
+    #[arg(long)]
+    pub connect: Vec<String>,
+    /// Also find peers by zenoh multicast scouting (off: only the explicit endpoints).
+    #[arg(long)]
+    pub multicast: bool,
+}
+
+fn clock_mode(s: &str) -> Result<bool, String> {
+    match s {
+        "virtual" => Ok(true),
+        "wall" => Ok(false),
+        _ => Err(format!("--clock: expected virtual or wall, got {s:?}")),
+    }
+}
+
+fn load_config(a: &RoomArgs) -> Result<LidarPeopleConfig, String> {
+    let preset = Preset::parse(&a.preset).map_err(|e| e.to_string())?;
+    let mut cfg = LidarPeopleConfig::preset(preset);
+    if let Some(p) = &a.config {
+        let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+        let base = toml::Value::try_from(&cfg).map_err(|e| e.to_string())?;
+        let mut table = base.as_table().cloned().unwrap_or_default();
+        let user: toml::Table = text.parse().map_err(|e| format!("{}: {e}", p.display()))?;
+        for (k, v) in user {
+            table.insert(k, v);
+        }
+        cfg = LidarPeopleConfig::from_toml(&toml::to_string(&table).map_err(|e| e.to_string())?)
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(cfg)
+}
+
+/// The scenario of `quarry lidar --band --people --frames --seed` (same duration formula), with
+/// the network and clock profiles.
+fn scenario(a: &RoomArgs, cfg: &LidarPeopleConfig) -> Result<Scenario, String> {
+    if a.frames == 0 {
+        return Err("--frames must be > 0".into());
+    }
+    let band = SpeedBand::parse(&a.band).map_err(|e| e.to_string())?;
+    let duration = 7.0 + a.frames as f64 * cfg.frame_period_s + 0.3;
+    Ok(Scenario::band(band, a.people, a.seed)
+        .with_duration(duration)
+        .with_network(NetworkModel::parse(&a.network).map_err(|e| e.to_string())?)
+        .with_clock(ClockProfile::parse(&a.clock_profile).map_err(|e| e.to_string())?))
+}
+
+#[cfg(feature = "zenoh")]
+fn open_transport(z: &ZenohArgs) -> Result<Box<dyn Transport>, String> {
+    let t = quarry_net::ZenohTransport::open(&quarry_net::ZenohOptions {
+        listen: z.listen.clone(),
+        connect: z.connect.clone(),
+        multicast_scouting: z.multicast,
+    })
+    .map_err(|e| e.to_string())?;
+    Ok(Box::new(t))
+}
+
+#[cfg(not(feature = "zenoh"))]
+fn open_transport(_: &ZenohArgs) -> Result<Box<dyn Transport>, String> {
+    Err("this quarry was built without the `zenoh` feature (cargo build -p quarry-cli --features zenoh)".into())
+}
+
+/// Arguments of `quarry lidar-node`.
+#[derive(Args, Debug)]
+#[command(
+    about = "One laser-scanner client of the networked lidar tracker: background model, publish dynamic points",
+    long_about = "One scanner client of the networked people tracker (paper 003, spec §7). It reads a \
+scanner source (scanner --scanner K of the simulated room, or a recorded scan CSV with --scans), runs \
+the scanner's chi-square background model and publishes the dynamic points of every scan over zenoh \
+(keys quarry/lidar/*, see docs/lidar-people.md \"Networked deployment\"). Start the server first; \
+the node retries its join request for --wait-server seconds.
+
+Clock modes (--clock):
+  wall     (default) scans are paced in real time (--speed), stamped with the node clock \
+synchronised to the server's (spec §7.3 NTP-style exchange at 1 Hz) and published as §7.1 wire \
+datagrams; the real network's delay, loss and duplicates are handled by the server.
+  virtual  simulated room only: the node publishes each scan with its simulated capture time and \
+the simulated arrival times of its copies (--network), as fast as the transport takes them; a \
+server in virtual mode replays them and reproduces `quarry lidar` with the same --band/--people/\
+--frames/--seed exactly.
+
+CSV sources (--scans): one row per scan, stamp_s,r0..r{N-1} (ranges in metres, NaN/inf/empty = \
+no return); the geometry comes from --meta (scan_meta.json) and --meta-key. Malformed rows and \
+stamps going backwards are skipped and counted.
+
+JSON (--json): sensor, scans, datagrams, dynamic_points, lost, duplicated, unsynced, sync_replies, \
+offset_us, client_ms_per_scan.
+
+EXAMPLES:
+  quarry lidar-node --scanner 0 --connect tcp/192.168.1.10:7447
+  quarry lidar-node --clock virtual --scanner 2 --frames 200 --seed 4 --connect tcp/127.0.0.1:7447
+  quarry lidar-node --scans right.csv --meta scan_meta.json --meta-key positive_1 --sensor-id 0 \\
+      --connect tcp/127.0.0.1:7447"
+)]
+pub struct LidarNodeArgs {
+    /// Clock mode: wall (real time, synchronised clocks) or virtual (simulated time).
+    #[arg(long, default_value = "wall")]
+    pub clock: String,
+    /// Scanner of the simulated room (0 = A, 1 = B, 2 = C); ignored with --scans.
+    #[arg(long, default_value_t = 0)]
+    pub scanner: usize,
+    /// Recorded scans (CSV) instead of the simulated room (wall clock only).
+    #[arg(long)]
+    pub scans: Option<PathBuf>,
+    /// scan_meta.json with the CSV's geometry (default: UTM-30LX, 1081 beams).
+    #[arg(long)]
+    pub meta: Option<PathBuf>,
+    /// Key of the recording in --meta.
+    #[arg(long)]
+    pub meta_key: Option<String>,
+    /// Sensor id of a CSV source (must be in the server's --sensors).
+    #[arg(long, default_value_t = 0)]
+    pub sensor_id: u16,
+    /// Wall clock: replay speed (1 = real time).
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// Wall clock: stop after this many scans.
+    #[arg(long)]
+    pub max_scans: Option<u64>,
+    /// Wall clock: no clock synchronisation (stamps go out unflagged; the server drops them
+    /// unless it runs with --accept-unsynced).
+    #[arg(long)]
+    pub no_sync: bool,
+    /// Seconds to wait for the server's beacon.
+    #[arg(long, default_value_t = 30.0)]
+    pub wait_server: f64,
+    #[command(flatten)]
+    pub room: RoomArgs,
+    #[command(flatten)]
+    pub net: ZenohArgs,
+}
+
+/// Entry point of `quarry lidar-node`.
+pub fn run_node(a: &LidarNodeArgs, out: &Output) -> CmdResult {
+    let s = node_inner(a).map_err(crate::output::CmdError::from)?;
+    out.emit(&s, || {
+        format!(
+            "lidar-node sensor {}: {} scans, {} datagrams, {} dynamic points; lost {}, duplicated {}, \
+             unsynced {}; {} sync replies, offset {}; {:.3} ms per scan\n",
+            s.sensor,
+            s.scans,
+            s.datagrams,
+            s.dynamic_points,
+            s.lost,
+            s.duplicated,
+            s.unsynced,
+            s.sync_replies,
+            s.offset_us.map_or("-".into(), |o| format!("{o:.0} µs")),
+            s.client_ms_per_scan
+        )
+    })
+}
+
+fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, String> {
+    let virtual_time = clock_mode(&a.clock)?;
+    let cfg = load_config(&a.room)?;
+    let wait = Duration::from_secs_f64(a.wait_server.max(0.0));
+    let e = |e: quarry_net::NetError| e.to_string();
+    if virtual_time {
+        if a.scans.is_some() {
+            return Err("--scans needs --clock wall (recordings replay in real time)".into());
+        }
+        let sc = scenario(&a.room, &cfg)?;
+        let t = open_transport(&a.net)?;
+        return quarry_net::run_sim_node(t.as_ref(), sc, a.scanner, &cfg, wait).map_err(e);
+    }
+    let opts = WallNodeOptions {
+        speed: a.speed,
+        max_scans: a.max_scans,
+        wait_server: wait,
+        sync: if a.no_sync {
+            SyncMode::None
+        } else {
+            SyncMode::Ntp
+        },
+        window_m: cfg.window_m as u16,
+        ..WallNodeOptions::default()
+    };
+    if let Some(path) = &a.scans {
+        let geometry = match &a.meta {
+            Some(m) => {
+                let key = a
+                    .meta_key
+                    .as_deref()
+                    .ok_or("--meta needs --meta-key (the recording's key in the file)")?;
+                let text =
+                    std::fs::read_to_string(m).map_err(|e| format!("{}: {e}", m.display()))?;
+                parse_scan_meta(&text, key).map_err(|e| e.to_string())?
+            }
+            None => ScanGeometry::utm30lx(),
+        };
+        let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let id = SensorId(a.sensor_id);
+        let reader = ScanCsvReader::new(
+            std::io::BufReader::new(f),
+            geometry,
+            ScanCsvOptions {
+                sensor: id,
+                ..ScanCsvOptions::default()
+            },
+        )
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut src = CsvSource::new(reader, id, geometry);
+        let t = open_transport(&a.net)?;
+        return quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts).map_err(e);
+    }
+    let sc = scenario(&a.room, &cfg)?;
+    let mut src = SimSource::new(sc, a.scanner).map_err(e)?;
+    let t = open_transport(&a.net)?;
+    quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts).map_err(e)
+}
+
+/// Arguments of `quarry lidar-server`.
+#[derive(Args, Debug)]
+#[command(
+    about = "Fusion server of the networked lidar tracker: fuse by timestamp, track, publish tracks",
+    long_about = "The fusion server of the networked people tracker (paper 003, spec §7). It subscribes \
+to the nodes' dynamic points, fuses them into 50 ms frames by synchronised timestamp with quarry-cloud's \
+FrameAssembler (late, duplicated, out-of-order, multi-part and missing scans, unsynchronised and future \
+stamps, restarts and silent sensors handled as spec §7.2 says, and counted), tracks every frame, \
+publishes its tracks on quarry/lidar/tracks and writes them to --out. It answers the nodes' clock-sync \
+requests (wall clock) and publishes a beacon on quarry/lidar/server/ready at 10 Hz.
+
+Sensors: the simulated room's three scanners (default), or --sensors FILE.json, a list of \
+{\"id\": 0, \"x\": 0.25, \"y\": 0.25, \"theta_deg\": 45, \"geometry\": {...}} (geometry as in \
+quarry-core's ScanGeometry; omitted = UTM-30LX).
+
+--clock virtual: replays the virtual-time nodes' simulated deliveries in simulated time; needs the \
+same --band/--people/--frames/--seed as the nodes and then writes exactly the tracks of `quarry lidar` \
+with those options. --clock wall (default): real time; stops when every sensor has sent its end \
+marker, after --duration seconds, or --idle-timeout seconds without data.
+
+Outputs (--out DIR): tracks.csv (frame,t_us,track_id,x,y,alpha,vx,vy,support,rms,born,gate_replaced, \
+as `quarry lidar`), tracks_mot.txt (MOTChallenge rows with world x, y) and server.json (the summary).
+
+JSON (--json): clock, frames, frames_no_data, track_rows, ms_per_frame, steps, rejected, \
+sync_replies, accepted, dup, late, future, unsynced, unknown, malformed, lost, restarts, bad_points, \
+min_latency_us (per sensor: the skew monitor's min(arrival - t_capture)).
+
+EXAMPLES:
+  quarry lidar-server --listen tcp/0.0.0.0:7447 --out run1
+  quarry lidar-server --clock virtual --frames 200 --seed 4 --listen tcp/127.0.0.1:7447 --out net"
+)]
+pub struct LidarServerArgs {
+    /// Clock mode: wall (real time) or virtual (replay of virtual-time nodes).
+    #[arg(long, default_value = "wall")]
+    pub clock: String,
+    /// Sensors file (JSON list of id, x, y, theta_deg, geometry); default: the simulated room.
+    #[arg(long)]
+    pub sensors: Option<PathBuf>,
+    /// Output directory (tracks.csv, tracks_mot.txt, server.json).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Wall clock: stop after this many seconds.
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Stop (wall clock) or fail (virtual time) after this many seconds without data.
+    #[arg(long, default_value_t = 20.0)]
+    pub idle_timeout: f64,
+    #[command(flatten)]
+    pub room: RoomArgs,
+    #[command(flatten)]
+    pub net: ZenohArgs,
+}
+
+#[derive(Debug, Deserialize)]
+struct SensorFileEntry {
+    id: u16,
+    x: f64,
+    y: f64,
+    theta_deg: f64,
+    geometry: Option<ScanGeometry>,
+}
+
+/// The JSON summary of `quarry lidar-server`.
+#[derive(Debug, Serialize)]
+pub struct ServerSummary {
+    /// `virtual` or `wall`.
+    pub clock: String,
+    /// Frames closed and tracked.
+    pub frames: usize,
+    /// Frames with no data.
+    pub frames_no_data: usize,
+    /// Track rows written.
+    pub track_rows: usize,
+    /// Fusion + tracking per frame, ms.
+    pub ms_per_frame: f64,
+    /// Virtual-time steps processed.
+    pub steps: u64,
+    /// Node messages rejected.
+    pub rejected: u64,
+    /// Sync requests answered.
+    pub sync_replies: u64,
+    /// Scan parts accepted.
+    pub accepted: u64,
+    /// Duplicates dropped.
+    pub dup: u64,
+    /// Late parts dropped.
+    pub late: u64,
+    /// Future-stamped parts dropped.
+    pub future: u64,
+    /// Unsynchronised parts dropped.
+    pub unsynced: u64,
+    /// Parts from unknown sensors.
+    pub unknown: u64,
+    /// Undecodable datagrams.
+    pub malformed: u64,
+    /// Sequence numbers never seen.
+    pub lost: u64,
+    /// Sensor restarts.
+    pub restarts: u64,
+    /// Invalid points skipped.
+    pub bad_points: u64,
+    /// Per sensor id: min(arrival − t_capture), µs.
+    pub min_latency_us: Vec<(u16, Option<i64>)>,
+}
+
+fn summary(clock: &str, r: &ServerRun) -> ServerSummary {
+    let s = r.stats;
+    ServerSummary {
+        clock: clock.into(),
+        frames: r.frames_tracked,
+        frames_no_data: r.frames_no_data,
+        track_rows: r.tracks.iter().map(|t| t.2.len()).sum(),
+        ms_per_frame: 1e3 * r.server_seconds / r.frames_tracked.max(1) as f64,
+        steps: r.steps,
+        rejected: r.rejected,
+        sync_replies: r.sync_replies,
+        accepted: s.accepted,
+        dup: s.dup,
+        late: s.late,
+        future: s.future,
+        unsynced: s.unsynced,
+        unknown: s.unknown,
+        malformed: s.malformed,
+        lost: s.lost,
+        restarts: s.restarts,
+        bad_points: s.bad_points,
+        min_latency_us: r.min_latency_us.clone(),
+    }
+}
+
+/// Entry point of `quarry lidar-server`.
+pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
+    let s = server_inner(a).map_err(crate::output::CmdError::from)?;
+    out.emit(&s, || {
+        let lat: Vec<String> = s
+            .min_latency_us
+            .iter()
+            .map(|(id, l)| format!("{id}: {}", l.map_or("-".into(), |v| format!("{v} µs"))))
+            .collect();
+        format!(
+            "lidar-server ({} clock): {} frames ({} without data), {} track rows, {:.3} ms per frame\n  \
+             accepted {}, dup {}, late {}, future {}, unsynced {}, unknown {}, malformed {}, lost {}, \
+             restarts {}, bad points {}; rejected node messages {}; sync replies {}\n  \
+             min(arrival - capture) per sensor: {}\n",
+            s.clock,
+            s.frames,
+            s.frames_no_data,
+            s.track_rows,
+            s.ms_per_frame,
+            s.accepted,
+            s.dup,
+            s.late,
+            s.future,
+            s.unsynced,
+            s.unknown,
+            s.malformed,
+            s.lost,
+            s.restarts,
+            s.bad_points,
+            s.rejected,
+            s.sync_replies,
+            lat.join(", ")
+        )
+    })
+}
+
+fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, String> {
+    let virtual_time = clock_mode(&a.clock)?;
+    let cfg = load_config(&a.room)?;
+    let sc = scenario(&a.room, &cfg)?;
+    let sensors: Vec<SensorSpec> = match &a.sensors {
+        None => sc
+            .scanners
+            .iter()
+            .map(|s| (s.id, s.pose, s.geometry))
+            .collect(),
+        Some(p) => {
+            if virtual_time {
+                return Err(
+                    "--sensors needs --clock wall (virtual time simulates the room's scanners)"
+                        .into(),
+                );
+            }
+            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            let list: Vec<SensorFileEntry> =
+                serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+            list.into_iter()
+                .map(|s| {
+                    (
+                        SensorId(s.id),
+                        Pose2::new(s.x, s.y, s.theta_deg.to_radians()),
+                        s.geometry.unwrap_or_else(ScanGeometry::utm30lx),
+                    )
+                })
+                .collect()
+        }
+    };
+    if !(a.idle_timeout.is_finite() && a.idle_timeout > 0.0) {
+        return Err("--idle-timeout must be positive".into());
+    }
+    let idle = Duration::from_secs_f64(a.idle_timeout);
+    let t = open_transport(&a.net)?;
+    let run = if virtual_time {
+        let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
+        quarry_net::run_sim_server(t.as_ref(), &sensors, &cfg, t_end, idle)
+    } else {
+        let opts = WallServerOptions {
+            max_duration: a
+                .duration
+                .filter(|d| d.is_finite() && *d > 0.0)
+                .map(Duration::from_secs_f64),
+            idle_timeout: idle,
+            ..WallServerOptions::default()
+        };
+        quarry_net::run_wall_server(t.as_ref(), &sensors, &cfg, &opts)
+    }
+    .map_err(|e| e.to_string())?;
+    let s = summary(&a.clock, &run);
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        super::lidar::write_tracks(&dir.join("tracks.csv"), &run.tracks)?;
+        super::lidar::write_mot(&dir.join("tracks_mot.txt"), &run.tracks)?;
+        let js = serde_json::to_string_pretty(&s).map_err(|e| e.to_string())?;
+        std::fs::write(dir.join("server.json"), js).map_err(|e| e.to_string())?;
+    }
+    Ok(s)
+}

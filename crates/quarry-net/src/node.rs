@@ -1,0 +1,490 @@
+//! `lidar-node`: one scanner client. It reads a [`ScanSource`], runs the scanner's chi-square
+//! background model and publishes the dynamic points of every scan.
+//!
+//! Two clock modes:
+//! - **virtual time** ([`run_sim_node`]): the source is scanner K of the simulated room; the
+//!   node publishes, per scan, a [`SimStep`] with the §7.1 datagrams and the *simulated* arrival
+//!   times of each delivered copy (the room's network model: delay, loss, duplicates) as fast as
+//!   the transport takes them. The server replays the arrivals in virtual time, so a networked
+//!   run is bit-identical to the in-process one of the same seed.
+//! - **wall clock** ([`run_wall_node`]): scans are paced in real time, stamped with the node's
+//!   clock synchronised to the server's by the §7.3 exchange (SyncRequest/SyncReply over the
+//!   transport), and published as plain §7.1 datagrams; the real network's delays, losses and
+//!   duplicates are what the server's frame assembler handles.
+
+use crate::NetError;
+use crate::envelope::{EndOfStream, SimMessage, SimStep};
+use crate::transport::{Subscription, Transport, keys};
+use quarry_cloud::csv_scans::ScanCsvReader;
+use quarry_cloud::net::ClockSync;
+use quarry_cloud::net::SyncMode;
+use quarry_cloud::net::wire::{Header, Hello, Kind, Message, Payload};
+use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
+use quarry_sim::lidar_room::{RoomEvent, Runner, Scenario};
+use quarry_trackers::lidar_people::{
+    ClientPipeline, LidarPeopleConfig, background_of, encode_dynamic,
+};
+use serde::Serialize;
+use std::io::Read;
+use std::time::{Duration, Instant};
+
+/// A source of scans for a node (spec §7.3: `sim` or `replay`).
+pub trait ScanSource {
+    /// The scanner's id.
+    fn sensor(&self) -> SensorId;
+    /// Its beam geometry.
+    fn geometry(&self) -> ScanGeometry;
+    /// The next scan with its source time (the pacing clock), or `None` at the end.
+    fn next_scan(&mut self) -> Result<Option<(TimeUs, PolarScan)>, NetError>;
+}
+
+/// Scanner `k` of a simulated room: its scans with their simulated capture times.
+pub struct SimSource {
+    runner: Runner,
+    k: usize,
+    id: SensorId,
+    geometry: ScanGeometry,
+}
+
+impl SimSource {
+    /// Scanner `k` (0-based) of `scenario`.
+    pub fn new(scenario: Scenario, k: usize) -> Result<Self, NetError> {
+        let s = scenario.scanners.get(k).ok_or_else(|| {
+            NetError::Config(format!(
+                "scanner {k} does not exist (the scenario has {})",
+                scenario.scanners.len()
+            ))
+        })?;
+        let (id, geometry) = (s.id, s.geometry);
+        let runner = Runner::new(scenario).map_err(|e| NetError::Config(e.to_string()))?;
+        Ok(Self {
+            runner,
+            k,
+            id,
+            geometry,
+        })
+    }
+
+    /// The next captured scan of this scanner, with its simulated arrivals.
+    pub fn next_captured(
+        &mut self,
+    ) -> Result<Option<quarry_sim::lidar_room::CapturedScan>, NetError> {
+        loop {
+            match self
+                .runner
+                .next_event()
+                .map_err(|e| NetError::Config(e.to_string()))?
+            {
+                None => return Ok(None),
+                Some(RoomEvent::Scan(cs)) if cs.scanner == self.k => return Ok(Some(cs)),
+                Some(_) => {}
+            }
+        }
+    }
+}
+
+impl ScanSource for SimSource {
+    fn sensor(&self) -> SensorId {
+        self.id
+    }
+    fn geometry(&self) -> ScanGeometry {
+        self.geometry
+    }
+    fn next_scan(&mut self) -> Result<Option<(TimeUs, PolarScan)>, NetError> {
+        Ok(self.next_captured()?.map(|cs| (cs.t_true, cs.scan)))
+    }
+}
+
+/// A recorded scan CSV (`stamp_s,r0..r{N-1}`, see quarry-cloud's `csv_scans`), replayed at the
+/// pace of its stamps. Malformed rows are skipped and counted as the reader's options say.
+pub struct CsvSource<R: Read> {
+    reader: ScanCsvReader<R>,
+    id: SensorId,
+    geometry: ScanGeometry,
+}
+
+impl<R: Read> CsvSource<R> {
+    /// A source over `reader` (whose options carry the sensor id).
+    pub fn new(reader: ScanCsvReader<R>, id: SensorId, geometry: ScanGeometry) -> Self {
+        Self {
+            reader,
+            id,
+            geometry,
+        }
+    }
+    /// The reader's counters (rows, skipped rows, invalid beams).
+    pub fn stats(&self) -> quarry_cloud::csv_scans::ScanCsvStats {
+        self.reader.stats()
+    }
+}
+
+impl<R: Read> ScanSource for CsvSource<R> {
+    fn sensor(&self) -> SensorId {
+        self.id
+    }
+    fn geometry(&self) -> ScanGeometry {
+        self.geometry
+    }
+    fn next_scan(&mut self) -> Result<Option<(TimeUs, PolarScan)>, NetError> {
+        match self.reader.next() {
+            None => Ok(None),
+            Some(Err(e)) => Err(NetError::Io(e.to_string())),
+            Some(Ok(s)) => Ok(Some((s.t, s))),
+        }
+    }
+}
+
+/// What a node did.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct NodeSummary {
+    /// Sensor id.
+    pub sensor: u16,
+    /// Scans read from the source.
+    pub scans: u64,
+    /// §7.1 datagrams published (wall mode), or carried in steps (virtual time).
+    pub datagrams: u64,
+    /// Dynamic points published.
+    pub dynamic_points: u64,
+    /// Virtual time: scans the simulated network lost (no arrival).
+    pub lost: u64,
+    /// Virtual time: scans the simulated network duplicated.
+    pub duplicated: u64,
+    /// Wall clock: scans stamped without `CLOCK_SYNCED` (the server drops them).
+    pub unsynced: u64,
+    /// Wall clock: sync replies received.
+    pub sync_replies: u64,
+    /// Wall clock: the last clock offset estimate, µs (server − node).
+    pub offset_us: Option<f64>,
+    /// Background subtraction time per scan, ms.
+    pub client_ms_per_scan: f64,
+}
+
+/// Joins the server: publishes a join request every 100 ms until the server's welcome arrives
+/// (so the route from this node to the server's subscriptions exists before any data is sent).
+pub fn wait_for_server(
+    transport: &dyn Transport,
+    id: SensorId,
+    timeout: Duration,
+) -> Result<(), NetError> {
+    let mut sub = transport.subscribe(&keys::welcome(id))?;
+    let t0 = Instant::now();
+    while t0.elapsed() < timeout {
+        transport.publish(&keys::join(id), b"join")?;
+        if sub.recv_timeout(Duration::from_millis(100))?.is_some() {
+            return Ok(());
+        }
+    }
+    Err(NetError::Timeout(format!(
+        "the server did not answer the join of sensor {} within {:.1} s",
+        id.0,
+        timeout.as_secs_f64()
+    )))
+}
+
+/// Publishes the end marker until the server acknowledges it (every 200 ms, at most
+/// `timeout`).
+fn finish(
+    transport: &dyn Transport,
+    id: SensorId,
+    end: &SimMessage,
+    timeout: Duration,
+) -> Result<(), NetError> {
+    let mut ack = transport.subscribe(&keys::end_ack(id))?;
+    let bytes = end.encode()?;
+    let t0 = Instant::now();
+    while t0.elapsed() < timeout {
+        transport.publish(&keys::end(id), &bytes)?;
+        if ack.recv_timeout(Duration::from_millis(200))?.is_some() {
+            return Ok(());
+        }
+    }
+    Err(NetError::Timeout(format!(
+        "the server did not acknowledge the end of sensor {} within {:.1} s",
+        id.0,
+        timeout.as_secs_f64()
+    )))
+}
+
+/// Virtual-time node: scanner `k` of `scenario`, background model of `cfg`. Publishes one
+/// [`SimStep`] per captured scan and an [`EndOfStream`]; waits up to `wait_server` for the
+/// server's beacon first.
+pub fn run_sim_node(
+    transport: &dyn Transport,
+    scenario: Scenario,
+    k: usize,
+    cfg: &LidarPeopleConfig,
+    wait_server: Duration,
+) -> Result<NodeSummary, NetError> {
+    cfg.validate()?;
+    let t_end = TimeUs((scenario.duration_s * 1e6).round() as i64);
+    let mut src = SimSource::new(scenario, k)?;
+    let id = src.sensor();
+    let mut client = ClientPipeline::new(id, background_of(cfg, &src.geometry())?);
+    wait_for_server(transport, id, wait_server)?;
+    let key = keys::sim(id);
+    let mut sum = NodeSummary {
+        sensor: id.0,
+        ..NodeSummary::default()
+    };
+    let mut client_s = 0.0;
+    let mut step = 0u32;
+    while let Some(cs) = src.next_captured()? {
+        let t0 = Instant::now();
+        let msg = client.on_scan(&cs.scan, cs.clock_synced)?;
+        client_s += t0.elapsed().as_secs_f64();
+        // the same bytes the in-process fusion builds (t_send = the capture stamp)
+        let datagrams = encode_dynamic(&msg, msg.t)?;
+        sum.scans += 1;
+        sum.datagrams += datagrams.len() as u64;
+        sum.dynamic_points += msg.beams.len() as u64;
+        sum.lost += u64::from(cs.arrivals.is_empty());
+        sum.duplicated += u64::from(cs.arrivals.len() > 1);
+        let m = SimMessage::Step(SimStep {
+            sensor: id,
+            step,
+            t_true: cs.t_true,
+            t_end,
+            arrivals: cs.arrivals,
+            datagrams,
+        });
+        transport.publish(&key, &m.encode()?)?;
+        step += 1;
+    }
+    let end = SimMessage::End(EndOfStream {
+        sensor: id,
+        steps: step,
+        t_end,
+    });
+    finish(transport, id, &end, wait_server)?;
+    sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);
+    Ok(sum)
+}
+
+/// Options of a wall-clock node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WallNodeOptions {
+    /// Replay speed (1 = real time): source time is divided by it when pacing.
+    pub speed: f64,
+    /// Stop after this many scans (`None` = the whole source).
+    pub max_scans: Option<u64>,
+    /// How long to wait for the server's beacon.
+    pub wait_server: Duration,
+    /// How long to run sync exchanges before the first scan (scans before the first estimate
+    /// go out without `CLOCK_SYNCED` and the server drops them).
+    pub sync_warmup: Duration,
+    /// Synchronisation mode (`Ntp` by default; `None` = send raw local time unflagged).
+    pub sync: SyncMode,
+    /// Background window length `m` reported in the Hello.
+    pub window_m: u16,
+}
+
+impl Default for WallNodeOptions {
+    fn default() -> Self {
+        Self {
+            speed: 1.0,
+            max_scans: None,
+            wait_server: Duration::from_secs(30),
+            sync_warmup: Duration::from_millis(1500),
+            sync: SyncMode::Ntp,
+            window_m: 40,
+        }
+    }
+}
+
+/// The node's local clock: µs since the UNIX epoch at start plus monotonic time since.
+struct LocalClock {
+    t0: Instant,
+    base_us: i64,
+}
+
+impl LocalClock {
+    fn new() -> Self {
+        let base_us = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as i64);
+        Self {
+            t0: Instant::now(),
+            base_us,
+        }
+    }
+    fn now(&self) -> TimeUs {
+        TimeUs(self.base_us + self.t0.elapsed().as_micros() as i64)
+    }
+}
+
+struct Syncer {
+    sync: ClockSync,
+    sub: Box<dyn Subscription>,
+    req_key: String,
+    id: SensorId,
+    next_req: Instant,
+    seq: u32,
+    replies: u64,
+}
+
+impl Syncer {
+    /// Sends a request when due and files every reply waiting (at most `wait`).
+    fn service(
+        &mut self,
+        transport: &dyn Transport,
+        clock: &LocalClock,
+        wait: Duration,
+    ) -> Result<(), NetError> {
+        if self.sync.mode() == SyncMode::None {
+            return Ok(());
+        }
+        if Instant::now() >= self.next_req {
+            let m = Message {
+                header: Header {
+                    kind: Kind::SyncRequest,
+                    sensor: self.id,
+                    seq: self.seq,
+                    part: 0,
+                    parts: 1,
+                    flags: 0,
+                    t_capture: TimeUs(0),
+                    t_send: clock.now(),
+                },
+                payload: Payload::Empty,
+            };
+            transport.publish(&self.req_key, &m.encode()?)?;
+            self.seq = self.seq.wrapping_add(1);
+            // 1 Hz as the spec says; faster (5 Hz) until the first estimate exists
+            let period = if self.sync.estimate().is_some() {
+                1000
+            } else {
+                200
+            };
+            self.next_req = Instant::now() + Duration::from_millis(period);
+        }
+        let mut w = wait;
+        while let Some(r) = self.sub.recv_timeout(w)? {
+            w = Duration::ZERO;
+            let t4 = clock.now();
+            if let Ok(m) = Message::decode(&r.payload)
+                && let Payload::SyncReply { t1, t2, t3 } = m.payload
+                && m.header.sensor == self.id
+                && self
+                    .sync
+                    .on_sync_reply(TimeUs(t1), TimeUs(t2), TimeUs(t3), t4)
+                    .is_ok()
+            {
+                self.replies += 1;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Wall-clock node over any [`ScanSource`]: Hello, clock sync warm-up, then every scan paced
+/// by its source time, stamped with the synchronised clock and published as §7.1 datagrams.
+pub fn run_wall_node(
+    transport: &dyn Transport,
+    source: &mut dyn ScanSource,
+    cfg: &LidarPeopleConfig,
+    opts: &WallNodeOptions,
+) -> Result<NodeSummary, NetError> {
+    cfg.validate()?;
+    if !(opts.speed.is_finite() && opts.speed > 0.0) {
+        return Err(NetError::Config("speed must be finite and positive".into()));
+    }
+    let id = source.sensor();
+    let g = source.geometry();
+    let mut client = ClientPipeline::new(id, background_of(cfg, &g)?);
+    let clock = LocalClock::new();
+    let mut syncer = Syncer {
+        sync: ClockSync::new(opts.sync),
+        sub: transport.subscribe(&keys::sync_reply(id))?,
+        req_key: keys::sync_request(id),
+        id,
+        next_req: Instant::now(),
+        seq: 0,
+        replies: 0,
+    };
+    wait_for_server(transport, id, opts.wait_server)?;
+    let key = keys::scan(id);
+    let hello = Message {
+        header: Header {
+            kind: Kind::Hello,
+            sensor: id,
+            seq: 0,
+            part: 0,
+            parts: 1,
+            flags: 0,
+            t_capture: TimeUs(0),
+            t_send: clock.now(),
+        },
+        payload: Payload::Hello(Hello {
+            n_beams: g.n_beams as u16,
+            front_step: (-g.angle_min / g.angle_increment)
+                .round()
+                .clamp(0.0, 65535.0) as u16,
+            slit_division: (std::f64::consts::TAU / g.angle_increment)
+                .round()
+                .clamp(0.0, 65535.0) as u16,
+            range_min_mm: (g.range_min * 1e3).round().clamp(0.0, 65535.0) as u16,
+            range_max_mm: (g.range_max * 1e3).round().clamp(0.0, 65535.0) as u16,
+            scan_period_us: (g.scan_period * 1e6).round().clamp(0.0, 4e9) as u32,
+            window_m: opts.window_m,
+        }),
+    };
+    transport.publish(&key, &hello.encode()?)?;
+    let warm = Instant::now();
+    while warm.elapsed() < opts.sync_warmup {
+        syncer.service(transport, &clock, Duration::from_millis(20))?;
+        // apply the estimate now, so that its first step (which clears CLOCK_SYNCED for one
+        // stamp) does not fall on a scan
+        let _ = syncer.sync.stamp(clock.now());
+    }
+    let mut sum = NodeSummary {
+        sensor: id.0,
+        ..NodeSummary::default()
+    };
+    let mut client_s = 0.0;
+    let mut first: Option<(TimeUs, Instant)> = None;
+    let mut seq = 0u32;
+    let mut last_stamp = TimeUs(0);
+    while opts.max_scans.is_none_or(|m| sum.scans < m) {
+        let Some((t_src, mut scan)) = source.next_scan()? else {
+            break;
+        };
+        // pace by the source clock
+        let (s0, w0) = *first.get_or_insert((t_src, Instant::now()));
+        let due = w0 + Duration::from_secs_f64((t_src.secs_since(s0) / opts.speed).max(0.0));
+        loop {
+            let left = due.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            syncer.service(transport, &clock, left.min(Duration::from_millis(20)))?;
+        }
+        let (stamp, synced) = syncer.sync.stamp(clock.now());
+        scan.t = stamp;
+        scan.seq = seq;
+        scan.sensor = id;
+        seq = seq.wrapping_add(1);
+        let t0 = Instant::now();
+        let msg = client.on_scan(&scan, synced)?;
+        client_s += t0.elapsed().as_secs_f64();
+        let (t_send, _) = syncer.sync.stamp(clock.now());
+        for d in encode_dynamic(&msg, t_send)? {
+            transport.publish(&key, &d)?;
+            sum.datagrams += 1;
+        }
+        sum.scans += 1;
+        sum.unsynced += u64::from(!synced);
+        sum.dynamic_points += msg.beams.len() as u64;
+        last_stamp = stamp;
+        syncer.service(transport, &clock, Duration::ZERO)?;
+    }
+    let end = SimMessage::End(EndOfStream {
+        sensor: id,
+        steps: u32::try_from(sum.scans).unwrap_or(u32::MAX),
+        t_end: last_stamp,
+    });
+    finish(transport, id, &end, opts.wait_server)?;
+    sum.sync_replies = syncer.replies;
+    sum.offset_us = syncer.sync.applied_offset();
+    sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);
+    Ok(sum)
+}

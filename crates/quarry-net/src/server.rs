@@ -1,0 +1,416 @@
+//! `lidar-server`: subscribes to the nodes, fuses their scans into frames with quarry-cloud's
+//! [`FrameAssembler`](quarry_cloud::net::FrameAssembler) (spec §7.2: late, duplicated,
+//! out-of-order, multi-part and missing scans, unsynchronised and future stamps, restarts,
+//! liveness), tracks every closed frame and publishes its tracks.
+//!
+//! In virtual time ([`run_sim_server`]) the server replays the nodes' simulated deliveries in
+//! virtual-time order with a conservative merge: an event at virtual time `t` is processed only
+//! once every node has reported progress up to `t` (or ended), so the order of events is that of
+//! the in-process run, whatever the real transport does to the interleaving of nodes, and the
+//! frames and tracks are bit-identical. In wall-clock mode ([`run_wall_server`]) the server
+//! stamps arrivals with its own monotonic clock, answers the nodes' sync requests, and polls
+//! the assembler every few milliseconds.
+
+use crate::NetError;
+use crate::envelope::{SimMessage, SimStep, TrackMessage};
+use crate::transport::{Transport, keys, sensor_of_key};
+use quarry_cloud::net::FusionStats;
+use quarry_cloud::net::wire::{Header, Kind, Message, Payload};
+use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry_sim::lidar_room::FRAME_US;
+use quarry_trackers::lidar_people::{
+    AssemblerFusion, DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
+};
+use std::cmp::Reverse;
+use std::collections::{BTreeMap, BinaryHeap};
+use std::time::{Duration, Instant};
+
+/// One scanner known to the server: id, world pose, beam geometry.
+pub type SensorSpec = (SensorId, Pose2, ScanGeometry);
+
+/// What a server run produced.
+#[derive(Debug, Clone, Default)]
+pub struct ServerRun {
+    /// Track rows of every closed frame: (frame index, frame time, rows).
+    pub tracks: Vec<(u64, TimeUs, Vec<LidarTrack>)>,
+    /// The frame assembler's counters (accepted, dup, late, future, unsynced, lost, ...).
+    pub stats: FusionStats,
+    /// Frames closed and tracked.
+    pub frames_tracked: usize,
+    /// Frames closed with no data (skipped by the tracker).
+    pub frames_no_data: usize,
+    /// Fusion + tracking time, seconds.
+    pub server_seconds: f64,
+    /// Virtual time: node steps processed.
+    pub steps: u64,
+    /// Node messages dropped: undecodable, unknown sensor, or a repeated step.
+    pub rejected: u64,
+    /// Wall clock: sync requests answered.
+    pub sync_replies: u64,
+    /// Per sensor: the skew monitor's ε_s = min(arrival − t_capture), µs (negative: the sensor's
+    /// clock is ahead; above 100 ms: behind, or a slow link).
+    pub min_latency_us: Vec<(u16, Option<i64>)>,
+}
+
+struct Core {
+    server: ServerPipeline<AssemblerFusion, DefaultLidarTracker>,
+    run: ServerRun,
+    ids: Vec<SensorId>,
+}
+
+impl Core {
+    fn new(sensors: &[SensorSpec], cfg: &LidarPeopleConfig) -> Result<Self, NetError> {
+        cfg.validate()?;
+        let fusion = AssemblerFusion::new(sensors, cfg)?;
+        let tracker = DefaultLidarTracker::from_config(cfg)?;
+        Ok(Self {
+            server: ServerPipeline::new(fusion, tracker, cfg.frame_period_s),
+            run: ServerRun::default(),
+            ids: sensors.iter().map(|s| s.0).collect(),
+        })
+    }
+
+    fn index(&self, id: SensorId) -> Option<usize> {
+        self.ids.iter().position(|&s| s == id)
+    }
+
+    /// Polls at `now`, tracks the closed frames and publishes their tracks.
+    fn poll(&mut self, transport: &dyn Transport, now: TimeUs) -> Result<(), NetError> {
+        let t0 = Instant::now();
+        let frames = self.server.poll(now)?;
+        self.run.server_seconds += t0.elapsed().as_secs_f64();
+        for (k, f, _) in frames {
+            let rows = self.server.tracker.last_rows().to_vec();
+            let m = TrackMessage {
+                frame: k,
+                t: f.t,
+                no_data: f.no_data,
+                tracks: rows.clone(),
+            };
+            transport.publish(keys::TRACKS, &m.encode()?)?;
+            self.run.frames_tracked += 1;
+            self.run.frames_no_data += usize::from(f.no_data);
+            self.run.tracks.push((k, f.t, rows));
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> ServerRun {
+        let a = &self.server.fusion.assembler;
+        self.run.stats = a.stats();
+        self.run.min_latency_us = self
+            .ids
+            .iter()
+            .map(|&s| (s.0, a.min_latency_us(s)))
+            .collect();
+        self.run
+    }
+}
+
+struct Beacon {
+    next: Instant,
+}
+
+impl Beacon {
+    fn tick(&mut self, transport: &dyn Transport) -> Result<(), NetError> {
+        if Instant::now() >= self.next {
+            transport.publish(keys::SERVER_READY, b"ready")?;
+            self.next = Instant::now() + Duration::from_millis(100);
+        }
+        Ok(())
+    }
+}
+
+#[derive(Default)]
+struct NodeIn {
+    next: u32,
+    buf: BTreeMap<u32, SimStep>,
+    progress: Option<i64>,
+    end_steps: Option<u32>,
+}
+
+impl NodeIn {
+    fn done(&self) -> bool {
+        self.end_steps.is_some_and(|n| self.next >= n)
+    }
+    fn horizon(&self) -> i64 {
+        if self.done() {
+            i64::MAX
+        } else {
+            self.progress.unwrap_or(i64::MIN)
+        }
+    }
+}
+
+/// Virtual-time server for `sensors` (in the scenario's scanner order) and a scenario ending
+/// at `t_end`. Returns once every node has sent its end marker and every event is processed;
+/// fails with [`NetError::Timeout`] when nothing arrives for `idle_timeout`.
+pub fn run_sim_server(
+    transport: &dyn Transport,
+    sensors: &[SensorSpec],
+    cfg: &LidarPeopleConfig,
+    t_end: TimeUs,
+    idle_timeout: Duration,
+) -> Result<ServerRun, NetError> {
+    let mut core = Core::new(sensors, cfg)?;
+    let mut sub = transport.subscribe("quarry/lidar/**")?;
+    let mut beacon = Beacon {
+        next: Instant::now(),
+    };
+    let mut nodes: Vec<NodeIn> = sensors.iter().map(|_| NodeIn::default()).collect();
+    let mut ready: BTreeMap<(i64, usize), SimStep> = BTreeMap::new();
+    let mut queue: BinaryHeap<Reverse<(i64, u64, usize)>> = BinaryHeap::new();
+    let mut pending: Vec<Option<Vec<Vec<u8>>>> = Vec::new();
+    let mut counter = 0u64;
+    let mut next_frame = 0i64;
+    let mut last_gt: Option<i64> = None;
+    let mut last_rx = Instant::now();
+
+    // the in-process run's `deliver`: every copy that has arrived by `now`, then a poll
+    let deliver = |core: &mut Core,
+                   queue: &mut BinaryHeap<Reverse<(i64, u64, usize)>>,
+                   pending: &mut Vec<Option<Vec<Vec<u8>>>>,
+                   now: i64|
+     -> Result<(), NetError> {
+        while let Some(Reverse((ta, _, idx))) = queue.peek().copied() {
+            if ta > now {
+                break;
+            }
+            queue.pop();
+            if let Some(ds) = pending.get_mut(idx).and_then(Option::take) {
+                for d in &ds {
+                    core.server.fusion.assembler.on_datagram(d, TimeUs(ta));
+                }
+            }
+        }
+        core.poll(transport, TimeUs(now))
+    };
+
+    loop {
+        // process every event that no node can precede any more
+        loop {
+            let h = nodes.iter().map(NodeIn::horizon).min().unwrap_or(i64::MAX);
+            let tf = next_frame.saturating_mul(FRAME_US);
+            let next_scan = ready.keys().next().copied();
+            let frame_due = tf < t_end.0;
+            if frame_due && h >= tf - 1 && next_scan.is_none_or(|(t, _)| tf <= t) {
+                deliver(&mut core, &mut queue, &mut pending, tf)?;
+                last_gt = Some(tf);
+                next_frame += 1;
+                continue;
+            }
+            if let Some((t, k)) = next_scan
+                && h >= t
+                && (!frame_due || t < tf)
+                && let Some(step) = ready.remove(&(t, k))
+            {
+                for a in &step.arrivals {
+                    pending.push(Some(step.datagrams.clone()));
+                    queue.push(Reverse((a.0, counter, pending.len() - 1)));
+                    counter += 1;
+                }
+                core.run.steps += 1;
+                deliver(&mut core, &mut queue, &mut pending, t)?;
+                if pending.len() > 4096 && queue.is_empty() {
+                    pending.clear();
+                }
+                continue;
+            }
+            break;
+        }
+        if nodes.iter().all(NodeIn::done) && ready.is_empty() {
+            // everything arrives, then the last frames close at their deadline
+            let end = last_gt.unwrap_or(0) + 1_000_000;
+            deliver(&mut core, &mut queue, &mut pending, end)?;
+            return Ok(core.finish());
+        }
+        beacon.tick(transport)?;
+        let Some(r) = sub.recv_timeout(Duration::from_millis(50))? else {
+            if last_rx.elapsed() > idle_timeout {
+                let waiting: Vec<String> = sensors
+                    .iter()
+                    .zip(&nodes)
+                    .filter(|(_, n)| !n.done())
+                    .map(|(s, n)| format!("sensor {} (at step {})", s.0.0, n.next))
+                    .collect();
+                return Err(NetError::Timeout(format!(
+                    "nothing received for {:.1} s; still waiting for {}",
+                    idle_timeout.as_secs_f64(),
+                    waiting.join(", ")
+                )));
+            }
+            continue;
+        };
+        if r.key.starts_with("quarry/lidar/join/") {
+            if let Some(id) = sensor_of_key(&r.key).filter(|&id| core.index(id).is_some()) {
+                transport.publish(&keys::welcome(id), b"welcome")?;
+            }
+            continue;
+        }
+        if !(r.key.starts_with("quarry/lidar/sim/") || r.key.starts_with("quarry/lidar/end/")) {
+            continue;
+        }
+        last_rx = Instant::now();
+        let Ok(m) = SimMessage::decode(&r.payload) else {
+            core.run.rejected += 1;
+            continue;
+        };
+        let sensor = match &m {
+            SimMessage::Step(s) => s.sensor,
+            SimMessage::End(e) => e.sensor,
+        };
+        let Some(k) = core
+            .index(sensor)
+            .filter(|_| sensor_of_key(&r.key) == Some(sensor))
+        else {
+            core.run.rejected += 1;
+            continue;
+        };
+        let n = &mut nodes[k];
+        match m {
+            SimMessage::End(e) => {
+                if e.t_end != t_end {
+                    return Err(NetError::Config(format!(
+                        "node {} simulates a scenario ending at {} µs, the server one ending at {} µs: \
+                         run node and server with the same --band/--people/--frames/--seed",
+                        sensor.0, e.t_end.0, t_end.0
+                    )));
+                }
+                n.end_steps = Some(e.steps);
+                transport.publish(&keys::end_ack(sensor), b"ok")?;
+            }
+            SimMessage::Step(s) => {
+                if s.t_end != t_end {
+                    return Err(NetError::Config(format!(
+                        "node {} simulates a scenario ending at {} µs, the server one ending at {} µs",
+                        sensor.0, s.t_end.0, t_end.0
+                    )));
+                }
+                if s.step < n.next || n.buf.contains_key(&s.step) {
+                    core.run.rejected += 1;
+                    continue;
+                }
+                n.buf.insert(s.step, s);
+                while let Some(s) = n.buf.remove(&n.next) {
+                    if n.progress.is_some_and(|p| s.t_true.0 <= p) {
+                        return Err(NetError::Config(format!(
+                            "node {}: capture times go backwards at step {}",
+                            sensor.0, s.step
+                        )));
+                    }
+                    n.progress = Some(s.t_true.0);
+                    n.next += 1;
+                    ready.insert((s.t_true.0, k), s);
+                }
+            }
+        }
+    }
+}
+
+/// Options of the wall-clock server.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WallServerOptions {
+    /// Stop after this long (`None`: until every sensor has sent its end marker).
+    pub max_duration: Option<Duration>,
+    /// Stop when nothing has arrived for this long after the first scan.
+    pub idle_timeout: Duration,
+    /// How often the assembler is polled.
+    pub poll_interval: Duration,
+}
+
+impl Default for WallServerOptions {
+    fn default() -> Self {
+        Self {
+            max_duration: None,
+            idle_timeout: Duration::from_secs(10),
+            poll_interval: Duration::from_millis(5),
+        }
+    }
+}
+
+/// Wall-clock server: server time is µs since it started (the nodes synchronise to it).
+pub fn run_wall_server(
+    transport: &dyn Transport,
+    sensors: &[SensorSpec],
+    cfg: &LidarPeopleConfig,
+    opts: &WallServerOptions,
+) -> Result<ServerRun, NetError> {
+    let mut core = Core::new(sensors, cfg)?;
+    let mut sub = transport.subscribe("quarry/lidar/**")?;
+    let mut beacon = Beacon {
+        next: Instant::now(),
+    };
+    let start = Instant::now();
+    let now = || TimeUs(start.elapsed().as_micros() as i64);
+    let mut ended = vec![false; sensors.len()];
+    let mut last_rx: Option<Instant> = None;
+    let mut next_poll = Instant::now();
+    loop {
+        beacon.tick(transport)?;
+        let wait = next_poll.saturating_duration_since(Instant::now());
+        if let Some(r) = sub.recv_timeout(wait)? {
+            let arrival = now();
+            let sensor = sensor_of_key(&r.key);
+            if r.key.starts_with("quarry/lidar/join/") {
+                if let Some(id) = sensor.filter(|&id| core.index(id).is_some()) {
+                    transport.publish(&keys::welcome(id), b"welcome")?;
+                }
+            } else if r.key.starts_with("quarry/lidar/scan/") {
+                last_rx = Some(Instant::now());
+                core.server
+                    .fusion
+                    .assembler
+                    .on_datagram(&r.payload, arrival);
+            } else if r.key.starts_with("quarry/lidar/sync/req/") {
+                if let Ok(m) = Message::decode(&r.payload)
+                    && m.header.kind == Kind::SyncRequest
+                    && Some(m.header.sensor) == sensor
+                {
+                    let t3 = now();
+                    let reply = Message {
+                        header: Header {
+                            kind: Kind::SyncReply,
+                            t_capture: TimeUs(0),
+                            t_send: t3,
+                            flags: 0,
+                            ..m.header
+                        },
+                        payload: Payload::SyncReply {
+                            t1: m.header.t_send.0,
+                            t2: arrival.0,
+                            t3: t3.0,
+                        },
+                    };
+                    transport.publish(&keys::sync_reply(m.header.sensor), &reply.encode()?)?;
+                    core.run.sync_replies += 1;
+                } else {
+                    core.run.rejected += 1;
+                }
+            } else if r.key.starts_with("quarry/lidar/end/") {
+                match SimMessage::decode(&r.payload) {
+                    Ok(SimMessage::End(e)) if Some(e.sensor) == sensor => {
+                        if let Some(k) = core.index(e.sensor) {
+                            ended[k] = true;
+                        }
+                        transport.publish(&keys::end_ack(e.sensor), b"ok")?;
+                    }
+                    _ => core.run.rejected += 1,
+                }
+            }
+        }
+        if Instant::now() >= next_poll {
+            core.poll(transport, now())?;
+            next_poll = Instant::now() + opts.poll_interval;
+        }
+        let all_ended = ended.iter().all(|&e| e);
+        let idle = last_rx.is_some_and(|t| t.elapsed() > opts.idle_timeout);
+        let over = opts.max_duration.is_some_and(|d| start.elapsed() > d);
+        if all_ended || idle || over {
+            // every frame whose deadline has passed by then, plus the last window
+            let fc = cfg.tau_sync_s + cfg.l_max_s + cfg.frame_period_s;
+            let flush = TimeUs(now().0 + (fc * 1e6).round() as i64);
+            core.poll(transport, flush)?;
+            return Ok(core.finish());
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! Nodes and server as threads over the in-process transport.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use quarry_core::TimeUs;
+use quarry_net::{
+    LocalBus, SensorSpec, SimSource, WallNodeOptions, WallServerOptions, run_sim_node,
+    run_sim_server, run_wall_node, run_wall_server,
+};
+use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
+use quarry_trackers::lidar_people::{LidarPeopleConfig, run_room_default};
+use std::time::Duration;
+
+fn sensors(sc: &Scenario) -> Vec<SensorSpec> {
+    sc.scanners
+        .iter()
+        .map(|s| (s.id, s.pose, s.geometry))
+        .collect()
+}
+
+fn networked(sc: &Scenario, cfg: &LidarPeopleConfig) -> quarry_net::ServerRun {
+    let bus = LocalBus::new();
+    let nodes: Vec<_> = (0..sc.scanners.len())
+        .map(|k| {
+            let (bus, sc, cfg) = (bus.clone(), sc.clone(), cfg.clone());
+            std::thread::spawn(move || run_sim_node(&bus, sc, k, &cfg, Duration::from_secs(30)))
+        })
+        .collect();
+    let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
+    let run = run_sim_server(&bus, &sensors(sc), cfg, t_end, Duration::from_secs(30)).unwrap();
+    for n in nodes {
+        n.join().unwrap().unwrap();
+    }
+    run
+}
+
+#[test]
+fn virtual_time_network_run_equals_the_in_process_run() {
+    // the default wifi network: loss, duplicates and delay spikes (late scans) are replayed
+    let cfg = LidarPeopleConfig::faithful();
+    for (sc, name) in [
+        (
+            Scenario::band(SpeedBand::Mid, 2, 7).with_duration(10.0),
+            "wifi",
+        ),
+        (
+            Scenario::band(SpeedBand::Fast, 2, 8)
+                .with_duration(9.0)
+                .with_network(NetworkModel::bad())
+                .with_clock(ClockProfile::Skewed),
+            "bad/skewed",
+        ),
+    ] {
+        let local = run_room_default(sc.clone(), &cfg, &mut |_| {}).unwrap();
+        let net = networked(&sc, &cfg);
+        assert_eq!(net.frames_tracked, local.frames_tracked, "{name}");
+        assert!(
+            local.tracks.iter().any(|t| !t.2.is_empty()),
+            "{name}: the run has no tracks, the comparison would be empty"
+        );
+        assert_eq!(net.tracks, local.tracks, "{name}");
+        assert!(
+            net.stats.dup > 0 || name == "wifi",
+            "{name}: {:?}",
+            net.stats
+        );
+        assert!(
+            net.stats.lost > 0,
+            "{name}: the network lost nothing: {:?}",
+            net.stats
+        );
+        assert_eq!(net.rejected, 0);
+    }
+}
+
+#[test]
+fn a_node_running_another_scenario_is_refused() {
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = Scenario::band(SpeedBand::Mid, 1, 1).with_duration(2.0);
+    let bus = LocalBus::new();
+    let other = sc.clone().with_duration(3.0);
+    let b2 = bus.clone();
+    let c2 = cfg.clone();
+    let h = std::thread::spawn(move || run_sim_node(&b2, other, 0, &c2, Duration::from_secs(3)));
+    let r = run_sim_server(
+        &bus,
+        &sensors(&sc),
+        &cfg,
+        TimeUs(2_000_000),
+        Duration::from_secs(30),
+    );
+    assert!(matches!(r, Err(quarry_net::NetError::Config(_))), "{r:?}");
+    drop(bus);
+    let _ = h.join();
+}
+
+#[test]
+fn a_silent_node_times_out_with_a_clear_error() {
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = Scenario::band(SpeedBand::Mid, 1, 1).with_duration(2.0);
+    let bus = LocalBus::new();
+    let r = run_sim_server(
+        &bus,
+        &sensors(&sc),
+        &cfg,
+        TimeUs(2_000_000),
+        Duration::from_millis(300),
+    );
+    match r {
+        Err(quarry_net::NetError::Timeout(m)) => assert!(m.contains("sensor 0"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn wall_clock_nodes_sync_and_the_server_fuses_every_scan() {
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = Scenario::band(SpeedBand::Mid, 2, 3).with_network(NetworkModel::ideal());
+    let bus = LocalBus::new();
+    let opts = WallNodeOptions {
+        max_scans: Some(60),
+        sync_warmup: Duration::from_millis(600),
+        ..WallNodeOptions::default()
+    };
+    let nodes: Vec<_> = (0..3)
+        .map(|k| {
+            let (bus, sc, cfg) = (bus.clone(), sc.clone(), cfg.clone());
+            std::thread::spawn(move || {
+                let mut src = SimSource::new(sc, k)?;
+                run_wall_node(&bus, &mut src, &cfg, &opts)
+            })
+        })
+        .collect();
+    let run = run_wall_server(
+        &bus,
+        &sensors(&sc),
+        &cfg,
+        &WallServerOptions {
+            max_duration: Some(Duration::from_secs(30)),
+            ..WallServerOptions::default()
+        },
+    )
+    .unwrap();
+    let sums: Vec<_> = nodes
+        .into_iter()
+        .map(|n| n.join().unwrap().unwrap())
+        .collect();
+    for s in &sums {
+        assert_eq!(s.scans, 60);
+        assert!(s.sync_replies >= 2, "{s:?}");
+        // a clock step of 10 ms or more clears CLOCK_SYNCED for one scan
+        assert!(s.unsynced <= 2, "{s:?}");
+    }
+    let unsynced: u64 = sums.iter().map(|s| s.unsynced).sum();
+    let st = run.stats;
+    // 180 scans; a loaded machine may delay a few beyond L_max = 100 ms
+    assert!(st.accepted + st.late + st.unsynced >= 180, "{st:?}");
+    assert!(st.late <= 9, "{st:?}");
+    assert_eq!(st.unsynced, unsynced, "{st:?}");
+    assert_eq!(st.malformed + st.unknown + st.future + st.dup, 0, "{st:?}");
+    assert_eq!(st.restarts, 3); // one Hello per node
+    assert!(run.frames_tracked >= 25, "{}", run.frames_tracked);
+    assert!(run.sync_replies >= 6);
+    // the bus is in-process: the skew monitor sees no negative delay beyond jitter
+    for (id, l) in &run.min_latency_us {
+        let l = l.unwrap_or_else(|| panic!("sensor {id} never heard"));
+        assert!(l > -5_000, "sensor {id}: {l} µs");
+    }
+}
