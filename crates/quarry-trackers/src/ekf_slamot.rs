@@ -446,22 +446,7 @@ impl EkfSlamot {
     }
 
     fn epoch(&mut self, obs: &SlamotObservation) -> Result<(), SlamotError> {
-        for (_, z) in &obs.landmark_obs {
-            if !(z[0].is_finite() && z[1].is_finite()) {
-                return Err(CoreError::NonFinite {
-                    what: "landmark detection",
-                }
-                .into());
-            }
-        }
-        for z in &obs.target_obs {
-            if !(z[0].is_finite() && z[1].is_finite()) {
-                return Err(CoreError::NonFinite {
-                    what: "target detection",
-                }
-                .into());
-            }
-        }
+        obs.check_detections()?;
         self.epochs += 1;
         let r = self.r();
         // landmarks: known ones updated sequentially, new ones appended

@@ -346,6 +346,32 @@ pub struct SlamotObservation {
     pub target_obs: Vec<[f64; 2]>,
 }
 
+impl SlamotObservation {
+    /// Checks that every landmark and target detection is finite (what both the RBPF and the
+    /// EKF-SLAMOT baseline require before an observation epoch).
+    pub fn check_detections(&self) -> Result<(), CoreError> {
+        if self
+            .landmark_obs
+            .iter()
+            .any(|(_, z)| !(z[0].is_finite() && z[1].is_finite()))
+        {
+            return Err(CoreError::NonFinite {
+                what: "landmark detection",
+            });
+        }
+        if self
+            .target_obs
+            .iter()
+            .any(|z| !(z[0].is_finite() && z[1].is_finite()))
+        {
+            return Err(CoreError::NonFinite {
+                what: "target detection",
+            });
+        }
+        Ok(())
+    }
+}
+
 impl From<&quarry_sim::slamot::SlamotFrame> for SlamotObservation {
     fn from(f: &quarry_sim::slamot::SlamotFrame) -> Self {
         Self {
@@ -892,22 +918,7 @@ where
     }
 
     fn epoch(&mut self, obs: &SlamotObservation) -> Result<(), SlamotError> {
-        for (_, z) in &obs.landmark_obs {
-            if !(z[0].is_finite() && z[1].is_finite()) {
-                return Err(CoreError::NonFinite {
-                    what: "landmark detection",
-                }
-                .into());
-            }
-        }
-        for z in &obs.target_obs {
-            if !(z[0].is_finite() && z[1].is_finite()) {
-                return Err(CoreError::NonFinite {
-                    what: "target detection",
-                }
-                .into());
-            }
-        }
+        obs.check_detections()?;
         self.epochs += 1;
         let cfg = self.cfg.clone();
         let [sr, sb] = cfg.meas_noise;
