@@ -58,7 +58,7 @@ use quarry_filter::{Bicycle, ConstantVelocity2, RangeBearing, Unicycle};
 
 use crate::slamot::{
     AssociationMode, MapPoints, RobotMotion, SimRunResult, SlamotConfig, SlamotError,
-    SlamotObservation, TargetInit, score_frames,
+    SlamotObservation, TargetInit, score_frames, two_point_pairs,
 };
 
 /// A point from the inverse model: mean, covariance from the sensor noise, `∂p/∂x_R`.
@@ -417,26 +417,10 @@ impl EkfSlamot {
                 if let Some((t0, prev)) = &self.prev_target_pts {
                     let dt = self.t - t0;
                     if dt > 0.0 {
-                        let mut pairs = Vec::new();
-                        for (j, (pj, cj)) in pts.iter().enumerate() {
-                            for (i, (pi, ci)) in prev.iter().enumerate() {
-                                let dd = (pj - pi).norm();
-                                if dd <= max_speed * dt + 3.0 * (cj.trace() + ci.trace()).sqrt() {
-                                    pairs.push((dd, j, i));
-                                }
-                            }
-                        }
-                        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-                        let mut used_j = vec![false; pts.len()];
-                        let mut used_i = vec![false; prev.len()];
-                        for (_, j, i) in pairs {
-                            if !used_j[j] && !used_i[i] {
-                                used_j[j] = true;
-                                used_i[i] = true;
-                                sel.push((j, Some((prev[i].0, prev[i].1, dt))));
-                            }
-                        }
-                        sel.sort_by_key(|(j, _)| *j);
+                        sel = two_point_pairs(&pts, prev, dt, max_speed)
+                            .into_iter()
+                            .map(|(j, i)| (j, Some((prev[i].0, prev[i].1, dt))))
+                            .collect();
                     }
                 }
                 self.prev_target_pts = Some((self.t, pts));

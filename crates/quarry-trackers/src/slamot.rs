@@ -698,6 +698,42 @@ pub struct SlamotTracker<S> {
 /// Detections placed in the map frame: (mean, covariance) per detection.
 pub(crate) type MapPoints = Vec<(Vector2<f64>, Matrix2<f64>)>;
 
+/// Two-point initiation (spec A19): pairs this epoch's map-frame detections `pts` with the
+/// previous epoch's `prev` (`dt` seconds earlier). A pair is gated by
+/// `max_speed · dt + 3 √(tr Σ_j + tr Σ_i)`; pairs are taken nearest first, each point at most
+/// once. Returns `(j, i)` (current, previous) sorted by `j`. Shared by the RBPF and the
+/// EKF-SLAMOT baseline so that both initiate targets by the same rule.
+pub(crate) fn two_point_pairs(
+    pts: &[(Vector2<f64>, Matrix2<f64>)],
+    prev: &[(Vector2<f64>, Matrix2<f64>)],
+    dt: f64,
+    max_speed: f64,
+) -> Vec<(usize, usize)> {
+    let mut pairs = Vec::new();
+    for (j, (pj, cj)) in pts.iter().enumerate() {
+        for (i, (pi, ci)) in prev.iter().enumerate() {
+            let d = (pj - pi).norm();
+            let gate = max_speed * dt + 3.0 * (cj.trace() + ci.trace()).sqrt();
+            if d <= gate {
+                pairs.push((d, j, i));
+            }
+        }
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut used_j = vec![false; pts.len()];
+    let mut used_i = vec![false; prev.len()];
+    let mut out = Vec::new();
+    for (_, j, i) in pairs {
+        if !used_j[j] && !used_i[i] {
+            used_j[j] = true;
+            used_i[i] = true;
+            out.push((j, i));
+        }
+    }
+    out.sort_by_key(|&(j, _)| j);
+    out
+}
+
 /// The default landmark store: quarry-filter's persistent Arc tree (O(1) particle copy,
 /// O(log M) landmark update).
 pub type DefaultStore = quarry_filter::store::PersistentStore<Gaussian<2>>;
@@ -1074,35 +1110,19 @@ where
                 if let Some((t0, prev)) = &self.prev_target_pts {
                     let dt = self.t - t0;
                     if dt > 0.0 {
-                        // all gated (current, previous) pairs, nearest first, exclusive
-                        let mut pairs = Vec::new();
-                        for (j, (pj, cj)) in pts.iter().enumerate() {
-                            for (i, (pi, ci)) in prev.iter().enumerate() {
-                                let d = (pj - pi).norm();
-                                let gate = max_speed * dt + 3.0 * (cj.trace() + ci.trace()).sqrt();
-                                if d <= gate {
-                                    pairs.push((d, j, i));
-                                }
-                            }
-                        }
-                        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-                        let mut used_j = vec![false; pts.len()];
-                        let mut used_i = vec![false; prev.len()];
-                        for (_, j, i) in pairs {
-                            if !used_j[j] && !used_i[i] {
-                                used_j[j] = true;
-                                used_i[i] = true;
-                                sel.push((
+                        sel = two_point_pairs(&pts, prev, dt, max_speed)
+                            .into_iter()
+                            .map(|(j, i)| {
+                                (
                                     j,
                                     Some(InitPartner {
                                         p: prev[i].0,
                                         cov: prev[i].1,
                                         dt,
                                     }),
-                                ));
-                            }
-                        }
-                        sel.sort_by_key(|(j, _)| *j);
+                                )
+                            })
+                            .collect();
                     }
                 }
                 self.prev_target_pts = Some((self.t, pts));

@@ -133,9 +133,19 @@ fn parse_band(s: &str) -> Result<SpeedBand, String> {
 }
 
 fn load_config(args: &LidarArgs) -> Result<LidarPeopleConfig, String> {
-    let preset = Preset::parse(&args.preset).map_err(|e| e.to_string())?;
+    preset_config(&args.preset, args.config.as_deref())
+}
+
+/// The configuration of preset `preset`, with the keys of the TOML file `config` (if any) laid
+/// over it (missing keys keep the preset's values). `quarry lidar`, `lidar-node` and
+/// `lidar-server` all load their configuration through this.
+pub(crate) fn preset_config(
+    preset: &str,
+    config: Option<&std::path::Path>,
+) -> Result<LidarPeopleConfig, String> {
+    let preset = Preset::parse(preset).map_err(|e| e.to_string())?;
     let mut cfg = LidarPeopleConfig::preset(preset);
-    if let Some(p) = &args.config {
+    if let Some(p) = config {
         let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
         let base = toml::Value::try_from(&cfg).map_err(|e| e.to_string())?;
         let mut table = base.as_table().cloned().unwrap_or_default();

@@ -11,7 +11,7 @@ use quarry_net::{
     WallServerOptions,
 };
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
-use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
+use quarry_trackers::lidar_people::LidarPeopleConfig;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -70,20 +70,7 @@ fn clock_mode(s: &str) -> Result<bool, String> {
 }
 
 fn load_config(a: &RoomArgs) -> Result<LidarPeopleConfig, String> {
-    let preset = Preset::parse(&a.preset).map_err(|e| e.to_string())?;
-    let mut cfg = LidarPeopleConfig::preset(preset);
-    if let Some(p) = &a.config {
-        let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
-        let base = toml::Value::try_from(&cfg).map_err(|e| e.to_string())?;
-        let mut table = base.as_table().cloned().unwrap_or_default();
-        let user: toml::Table = text.parse().map_err(|e| format!("{}: {e}", p.display()))?;
-        for (k, v) in user {
-            table.insert(k, v);
-        }
-        cfg = LidarPeopleConfig::from_toml(&toml::to_string(&table).map_err(|e| e.to_string())?)
-            .map_err(|e| e.to_string())?;
-    }
-    Ok(cfg)
+    super::lidar::preset_config(&a.preset, a.config.as_deref())
 }
 
 /// The scenario of `quarry lidar --band --people --frames --seed` (same duration formula), with
