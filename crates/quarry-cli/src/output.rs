@@ -22,12 +22,12 @@ pub struct Output {
 impl Output {
     /// Prints the result: `value` as one JSON object with `--json`, else the `human` text.
     pub fn emit<T: Serialize>(&self, value: &T, human: impl FnOnce() -> String) -> CmdResult {
-        if self.json {
-            println!("{}", serde_json::to_string(value)?);
+        let text = if self.json {
+            format!("{}\n", serde_json::to_string(value)?)
         } else {
-            print!("{}", human());
-        }
-        Ok(())
+            human()
+        };
+        write_stdout(&text)
     }
 
     /// Reports an error: `error: ...` (with its causes) on stderr; with `--json` also
@@ -41,7 +41,7 @@ impl Output {
         }
         eprintln!("error: {msg}");
         if self.json {
-            println!("{}", serde_json::json!({ "error": msg }));
+            let _ = write_stdout(&format!("{}\n", serde_json::json!({ "error": msg })));
         }
     }
 }
@@ -115,6 +115,18 @@ impl Table {
 /// Formats an optional ratio with `digits` decimals, `n/a` when undefined.
 pub fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "n/a".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// Writes `text` to stdout. A closed pipe (`quarry ... --json | head -c 100`) ends the output
+/// quietly instead of panicking as `println!` does; other write errors are reported.
+fn write_stdout(text: &str) -> CmdResult {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(format!("cannot write to stdout: {e}").into()),
+        Ok(()) => Ok(()),
+    }
 }
 
 #[cfg(test)]
