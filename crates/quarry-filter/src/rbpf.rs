@@ -72,7 +72,7 @@ pub mod fastslam1 {
         })?;
         let (post, inn) = ekf::update(prior, model, z, form)?;
         store.set(id, post)?;
-        Ok(inn.log_likelihood)
+        Ok(inn.log_likelihood())
     }
 }
 
@@ -98,7 +98,7 @@ mod tests {
         let (post, inn) = ekf::update(&prior, &m, &z1, UpdateForm::Joseph).unwrap();
         let lw = fastslam1::landmark_update(&mut ps, a, &m, &z1, UpdateForm::Joseph).unwrap();
         let lw2 = fastslam1::landmark_update(&mut vs, b, &m, &z1, UpdateForm::Joseph).unwrap();
-        assert_eq!(lw, inn.log_likelihood);
+        assert_eq!(lw, inn.log_likelihood());
         assert_eq!(lw, lw2);
         assert_eq!(*ps.get(a).unwrap(), post);
         assert_eq!(ps.get(a), vs.get(b));

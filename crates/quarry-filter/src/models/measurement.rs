@@ -153,7 +153,15 @@ impl RangeBearing {
     fn h(&self, px: f64, py: f64) -> Vector2<f64> {
         let dx = px - self.sensor.x;
         let dy = py - self.sensor.y;
-        Vector2::new(dx.hypot(dy), wrap_angle(dy.atan2(dx) - self.sensor.theta))
+        // √(Δx² + Δy²) where the square is a normal number (every realistic geometry), `hypot`
+        // (four times the cost) where it would under- or overflow.
+        let q = dx * dx + dy * dy;
+        let range = if q.is_normal() {
+            q.sqrt()
+        } else {
+            dx.hypot(dy)
+        };
+        Vector2::new(range, wrap_angle(dy.atan2(dx) - self.sensor.theta))
     }
 
     #[inline]
@@ -161,8 +169,10 @@ impl RangeBearing {
         let dx = px - self.sensor.x;
         let dy = py - self.sensor.y;
         let q = dx * dx + dy * dy;
-        let r = q.sqrt();
-        Matrix2::new(dx / r, dy / r, -dy / q, dx / q)
+        // One division: 1/r, then 1/q = (1/r)².
+        let inv_r = 1.0 / q.sqrt();
+        let inv_q = inv_r * inv_r;
+        Matrix2::new(dx * inv_r, dy * inv_r, -dy * inv_q, dx * inv_q)
     }
 
     /// `H_x = ∂h/∂(sensor pose)` at point `p` (spec 000 §2.4; needed by a FastSLAM 2.0 proposal).
