@@ -88,10 +88,11 @@ mod image_interop {
         }
     }
 
-    /// Any decoded image → f32 grey plane in 0..=255 (the `image` crate's luma conversion
-    /// of the 8-bit grey version, so values equal those of [`crate::io::load_gray`]).
+    /// Any decoded image → f32 grey plane in 0..=255: the 8-bit grey of
+    /// [`crate::io::load_gray`] (grey as it is, colour by BT.601), so values equal that
+    /// function's.
     pub fn dynamic_to_f32(img: &DynamicImage) -> Plane<f32> {
-        super::u8_to_f32(&Plane::from(img.to_luma8()))
+        super::u8_to_f32(&crate::io::to_gray_bt601(img))
     }
 
     /// RGB → grey with spec 004's rule `Y = round(0.299 R + 0.587 G + 0.114 B)` (BT.601,
