@@ -197,6 +197,52 @@ mod tests {
         }
     }
 
+    /// FNV-1a digest of a label image (pins the exact labels across implementations).
+    fn label_digest(labels: &[u32]) -> u64 {
+        labels.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &l| {
+            l.to_le_bytes()
+                .iter()
+                .fold(h, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+        })
+    }
+
+    /// The labels of `photo_gray` (whole step, 8-connected; and the 4-connected watershed of the
+    /// σ-8 f32 blur, the cv2/skimage benchmark workload) are pinned by digests taken from the
+    /// priority-queue implementation (`watershed::reference`), so any change of the flood that
+    /// alters a single label fails here.
+    #[cfg(feature = "io")]
+    #[test]
+    fn photo_gray_label_digests() {
+        use crate::blur::gaussian_blur_f32;
+        use crate::watershed::flood;
+        let photo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/bench-data/photo_gray.png");
+        if !photo.exists() {
+            eprintln!("skipped: no {}", photo.display());
+            return;
+        }
+        let frame = crate::io::load_gray(&photo).unwrap();
+        let seg = RampBlurWatershed::default().segment(&frame).unwrap();
+        let blurred = gaussian_blur_f32(&frame.map(|&v| f32::from(v)), 8.0).unwrap();
+        let seeds = regional_minima(&blurred, Connectivity::Four).unwrap();
+        let four = flood(
+            &blurred,
+            &seeds,
+            WatershedOptions {
+                connectivity: Connectivity::Four,
+            },
+        )
+        .unwrap();
+        let got = (
+            seg.n_regions(),
+            label_digest(&seg.labels.data),
+            four.n_regions(),
+            label_digest(&four.labels.data),
+        );
+        eprintln!("photo_gray digests {got:#x?}");
+        assert_eq!(got, (87, 0x71cb_07c9_608c_5132, 160, 0xe368_4d00_ae6f_a9ca));
+    }
+
     #[test]
     fn bad_input() {
         let seg = RampBlurWatershed::default();
