@@ -91,7 +91,7 @@ pub fn flood<T: Relief>(
         .into());
     }
     let mut labels = seeds.labels.data.clone();
-    flood_sorted(
+    flood_labels(
         &relief.data,
         relief.width as usize,
         &mut labels,
@@ -115,7 +115,7 @@ pub(crate) fn flood_minima<T: Relief>(
     options: WatershedOptions,
 ) -> Segmentation {
     let Minima { mut labels, minima } = seeds;
-    flood_sorted(
+    flood_labels(
         &relief.data,
         relief.width as usize,
         &mut labels.data,
@@ -272,6 +272,334 @@ fn flood_sorted<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: 
         }
         st.fifo.clear();
         i = j;
+    }
+}
+
+/// `parent` marker of a seed pixel.
+const SEED: u32 = u32::MAX;
+/// `parent` marker of a pixel whose lowest neighbours tie (resolved by [`Descent::rank_cmp`]).
+const TIE: u32 = u32::MAX - 1;
+/// `parent` marker of a non-seed pixel without a strictly lower neighbour (inside a plateau).
+const PLATEAU: u32 = u32::MAX - 2;
+
+/// The descent flood could not prove its shortcut (an unseeded regional minimum, or the
+/// comparison budget ran out on a pathological relief); the sorted flood runs instead.
+struct Bail;
+
+/// The flood proper: the descent flood when it applies, the presorted flood otherwise (both give
+/// the priority-queue order exactly).
+fn flood_labels<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: Connectivity) {
+    if d.len() >= PLATEAU as usize || flood_descent(d, w, labels, connectivity).is_err() {
+        flood_sorted(d, w, labels, connectivity);
+    }
+}
+
+/// The descent flood (see the module documentation): every pixel takes the label of its
+/// *labeller*, the neighbour whose pop pushed it in the priority-queue flood. When every
+/// regional minimum holds a seed, all keys equal the pixels' own values and the labeller is
+/// the neighbour of least `(value, push order)`; only ties need the push order, which is
+/// compared through the labellers' own ranks (`Descent::rank_cmp`).
+///
+/// Leaves `labels` as it found it when it returns `Err`.
+fn flood_descent<T: Relief>(
+    d: &[T],
+    w: usize,
+    labels: &mut [u32],
+    connectivity: Connectivity,
+) -> Result<(), Bail> {
+    let n = d.len();
+    let h = n / w;
+    let offs = connectivity.offsets();
+    let lin: Vec<isize> = offs
+        .iter()
+        .map(|&(dx, dy)| dy as isize * w as isize + dx as isize)
+        .collect();
+    let key = |p: usize| level_key(d[p].to_f64());
+    let mut parent = vec![0u32; n];
+    let mut hard: Vec<(u64, u32)> = Vec::new();
+    for y in 0..h {
+        let row_inside = y > 0 && y + 1 < h;
+        let row = y * w;
+        for x in 0..w {
+            let p = row + x;
+            if labels[p] != 0 {
+                parent[p] = SEED;
+                continue;
+            }
+            // the least neighbour key, its pixel, and whether another neighbour shares it
+            let (mut best, mut arg, mut ties) = (u64::MAX, 0usize, false);
+            let mut see = |q: usize| {
+                let kq = key(q);
+                let lt = kq < best;
+                ties = if lt { false } else { ties | (kq == best) };
+                if lt {
+                    best = kq;
+                    arg = q;
+                }
+            };
+            if row_inside && x > 0 && x + 1 < w {
+                for &o in &lin {
+                    see(p.wrapping_add_signed(o));
+                }
+            } else {
+                for &(dx, dy) in offs {
+                    let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                    if qx >= 0 && qy >= 0 && qx < w as isize && qy < h as isize {
+                        see(qy as usize * w + qx as usize);
+                    }
+                }
+            }
+            let kp = key(p);
+            parent[p] = if best < kp && !ties {
+                arg as u32
+            } else if best < kp {
+                hard.push((kp, p as u32));
+                TIE
+            } else if best == kp {
+                hard.push((kp, p as u32));
+                PLATEAU
+            } else {
+                // a non-seed pixel below all its neighbours: an unseeded regional minimum
+                return Err(Bail);
+            };
+        }
+    }
+    if !hard.is_empty() {
+        hard.sort_unstable();
+        let mut ctx = Descent {
+            d,
+            w,
+            h,
+            offs,
+            parent: &mut parent,
+            budget: 64 * n + 4096,
+            seen: Bits::new(0),
+            stack: Vec::new(),
+            entries: Vec::new(),
+            queue: Vec::new(),
+        };
+        let mut i = 0;
+        while i < hard.len() {
+            let k = hard[i].0;
+            let mut j = i + 1;
+            while j < hard.len() && hard[j].0 == k {
+                j += 1;
+            }
+            // ties first: plateau entries at this level may be tie pixels themselves
+            for &(_, p) in &hard[i..j] {
+                let p = p as usize;
+                if ctx.parent[p] == TIE {
+                    ctx.parent[p] = ctx.tie_parent(p)?;
+                }
+            }
+            for &(_, p) in &hard[i..j] {
+                let p = p as usize;
+                if ctx.parent[p] == PLATEAU {
+                    ctx.plateau(p, k)?;
+                }
+            }
+            i = j;
+        }
+    }
+    // every non-seed pixel now has its labeller (lower rank, so the chains end at seeds)
+    let mut stack: Vec<usize> = Vec::new();
+    for p in 0..n {
+        if labels[p] != 0 {
+            continue;
+        }
+        let mut q = p;
+        while labels[q] == 0 {
+            stack.push(q);
+            q = parent[q] as usize;
+        }
+        let l = labels[q];
+        for s in stack.drain(..) {
+            labels[s] = l;
+        }
+    }
+    Ok(())
+}
+
+/// The state of the tie and plateau resolution of [`flood_descent`].
+struct Descent<'a, T> {
+    d: &'a [T],
+    w: usize,
+    h: usize,
+    offs: &'static [(i32, i32)],
+    /// labeller of each non-seed pixel (or a marker)
+    parent: &'a mut [u32],
+    /// rank-comparison steps left before giving up
+    budget: usize,
+    /// pixels already gathered into a plateau component (allocated on first use)
+    seen: Bits,
+    stack: Vec<usize>,
+    entries: Vec<usize>,
+    queue: Vec<usize>,
+}
+
+impl<T: Relief> Descent<'_, T> {
+    #[inline]
+    fn key(&self, p: usize) -> u64 {
+        level_key(self.d[p].to_f64())
+    }
+
+    /// The in-image neighbours of `p`, in the connectivity's visiting order.
+    fn neighbours(&self, p: usize) -> impl Iterator<Item = usize> + use<T> {
+        let (w, h) = (self.w as isize, self.h as isize);
+        let (x, y) = ((p % self.w) as isize, (p / self.w) as isize);
+        self.offs.iter().filter_map(move |&(dx, dy)| {
+            let (qx, qy) = (x + dx as isize, y + dy as isize);
+            (qx >= 0 && qy >= 0 && qx < w && qy < h).then(|| (qy * w + qx) as usize)
+        })
+    }
+
+    /// Position of neighbour `q` in `p`'s visiting order.
+    fn offset_index(&self, p: usize, q: usize) -> usize {
+        let dx = (q % self.w) as isize - (p % self.w) as isize;
+        let dy = (q / self.w) as isize - (p / self.w) as isize;
+        self.offs
+            .iter()
+            .position(|&(ox, oy)| ox as isize == dx && oy as isize == dy)
+            .unwrap_or(usize::MAX)
+    }
+
+    /// Order of `x` and `y` in the priority-queue pop sequence: by key, then by push order.
+    /// Seeds are pushed first, in raster order; any other pixel is pushed during its
+    /// labeller's pop, in that pop's visiting order.
+    fn rank_cmp(&mut self, mut x: usize, mut y: usize) -> Result<std::cmp::Ordering, Bail> {
+        use std::cmp::Ordering;
+        loop {
+            if x == y {
+                return Ok(Ordering::Equal);
+            }
+            let (kx, ky) = (self.key(x), self.key(y));
+            if kx != ky {
+                return Ok(kx.cmp(&ky));
+            }
+            let (px, py) = (self.parent[x], self.parent[y]);
+            match (px == SEED, py == SEED) {
+                (true, true) => return Ok(x.cmp(&y)),
+                (true, false) => return Ok(Ordering::Less),
+                (false, true) => return Ok(Ordering::Greater),
+                (false, false) => {}
+            }
+            if px >= PLATEAU || py >= PLATEAU || self.budget == 0 {
+                // an unresolved labeller cannot occur in processing order; give up safely
+                return Err(Bail);
+            }
+            if px == py {
+                let p = px as usize;
+                return Ok(self.offset_index(p, x).cmp(&self.offset_index(p, y)));
+            }
+            self.budget -= 1;
+            (x, y) = (px as usize, py as usize);
+        }
+    }
+
+    /// The labeller of a tie pixel: the first popped of its lowest neighbours.
+    fn tie_parent(&mut self, p: usize) -> Result<u32, Bail> {
+        let best = self
+            .neighbours(p)
+            .map(|q| self.key(q))
+            .min()
+            .unwrap_or(u64::MAX);
+        let lowest: Vec<usize> = self
+            .neighbours(p)
+            .filter(|&q| self.key(q) == best)
+            .collect();
+        let mut cur = lowest.first().copied().ok_or(Bail)?;
+        for &q in &lowest[1..] {
+            if self.rank_cmp(q, cur)?.is_lt() {
+                cur = q;
+            }
+        }
+        Ok(cur as u32)
+    }
+
+    /// Floods the plateau component of interior pixel `s` (key `k`) exactly as the level-`k`
+    /// FIFO does: its entries (seeds, or pixels with a lower neighbour, adjacent to the
+    /// component) are popped in push order, then the first-in-first-out queue.
+    fn plateau(&mut self, s: usize, k: u64) -> Result<(), Bail> {
+        if self.seen.0.is_empty() {
+            self.seen = Bits::new(self.d.len());
+        }
+        self.entries.clear();
+        self.stack.clear();
+        self.stack.push(s);
+        self.seen.set(s);
+        while let Some(c) = self.stack.pop() {
+            for q in self.neighbours(c) {
+                if self.key(q) != k {
+                    continue;
+                }
+                if self.parent[q] == PLATEAU {
+                    if !self.seen.get(q) {
+                        self.seen.set(q);
+                        self.stack.push(q);
+                    }
+                } else {
+                    self.entries.push(q);
+                }
+            }
+        }
+        if self.entries.is_empty() {
+            // an unseeded regional minimum
+            return Err(Bail);
+        }
+        self.entries.sort_unstable();
+        self.entries.dedup();
+        let mut entries = std::mem::take(&mut self.entries);
+        let sorted = self.merge_sort_by_rank(&mut entries);
+        self.entries = entries;
+        sorted?;
+        self.queue.clear();
+        self.queue.extend_from_slice(&self.entries);
+        let mut head = 0;
+        while head < self.queue.len() {
+            let e = self.queue[head];
+            head += 1;
+            for q in self.neighbours(e) {
+                // `seen`: members of this component only (an entry may also touch another
+                // interior component of the same level, flooded with its own entries)
+                if self.parent[q] == PLATEAU && self.seen.get(q) {
+                    self.parent[q] = e as u32;
+                    self.queue.push(q);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Stable bottom-up merge sort of `v` by [`Self::rank_cmp`] (fallible, so not `sort_by`).
+    fn merge_sort_by_rank(&mut self, v: &mut Vec<usize>) -> Result<(), Bail> {
+        let n = v.len();
+        let mut buf = vec![0usize; n];
+        let mut width = 1;
+        while width < n {
+            let mut lo = 0;
+            while lo < n {
+                let mid = (lo + width).min(n);
+                let hi = (lo + 2 * width).min(n);
+                let (mut i, mut j, mut o) = (lo, mid, lo);
+                while i < mid && j < hi {
+                    if self.rank_cmp(v[j], v[i])?.is_lt() {
+                        buf[o] = v[j];
+                        j += 1;
+                    } else {
+                        buf[o] = v[i];
+                        i += 1;
+                    }
+                    o += 1;
+                }
+                buf[o..o + (mid - i)].copy_from_slice(&v[i..mid]);
+                o += mid - i;
+                buf[o..o + (hi - j)].copy_from_slice(&v[j..hi]);
+                lo = hi;
+            }
+            std::mem::swap(v, &mut buf);
+            width *= 2;
+        }
+        Ok(())
     }
 }
 
@@ -651,6 +979,69 @@ mod tests {
                 assert_eq!(a, b, "case {case} f32 {w}x{h} {conn:?}");
             }
         }
+    }
+
+    /// The descent flood itself (not the fallback) reproduces the priority-queue flood: it must
+    /// succeed whenever every regional minimum holds a seed, and agree with the reference
+    /// whenever it succeeds (random seeds usually leave a minimum unseeded and make it give up).
+    /// Reliefs with few levels (plateaus, ties among lowest neighbours, plateau components
+    /// touching the same entries) and with many levels.
+    #[test]
+    fn descent_flood_equals_priority_queue_flood() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(23);
+        let (mut random_seed_runs, mut plateau_cases) = (0, 0);
+        for case in 0..400u32 {
+            let w = 1 + rng.next_u32() % 29;
+            let h = 1 + rng.next_u32() % 19;
+            let levels = match case % 4 {
+                0 => 2,
+                1 => 3,
+                2 => 12,
+                _ => 5000,
+            };
+            let relief = Plane::from_fn(w, h, |_, _| f64::from(rng.next_u32() % levels) - 7.0);
+            for conn in [Connectivity::Four, Connectivity::Eight] {
+                let opts = WatershedOptions { connectivity: conn };
+                let minima = regional_minima(&relief, conn).unwrap();
+                let b = reference::flood_reference(&relief, &minima, opts).unwrap();
+                let mut labels = minima.labels.data.clone();
+                assert!(
+                    flood_descent(&relief.data, w as usize, &mut labels, conn).is_ok(),
+                    "case {case} {conn:?}: descent gave up with every minimum seeded"
+                );
+                assert_eq!(labels, b.labels.data, "case {case} {w}x{h} {conn:?}");
+                if minima.minima.iter().any(|m| m.size > 1) {
+                    plateau_cases += 1;
+                }
+                // random extra seeds on top of the minima (the shortcut must still hold), and
+                // random seeds alone
+                let mut extra = minima.clone();
+                let mut alone = Minima {
+                    labels: Plane::new(w, h, 0u32),
+                    minima: minima.minima.clone(),
+                };
+                for _ in 0..(1 + rng.next_u32() % 6) {
+                    let (x, y) = (rng.next_u32() % w, rng.next_u32() % h);
+                    let id = 1 + rng.next_u32() % minima.len() as u32;
+                    extra.labels.set(x, y, id);
+                    alone.labels.set(x, y, id);
+                }
+                for seeds in [&extra, &alone] {
+                    let b = reference::flood_reference(&relief, seeds, opts).unwrap();
+                    let mut labels = seeds.labels.data.clone();
+                    if flood_descent(&relief.data, w as usize, &mut labels, conn).is_ok() {
+                        random_seed_runs += 1;
+                        assert_eq!(labels, b.labels.data, "case {case} extra seeds {conn:?}");
+                    } else {
+                        assert_eq!(labels, seeds.labels.data, "left the seeds as they were");
+                    }
+                    assert_eq!(flood(&relief, seeds, opts).unwrap(), b);
+                }
+            }
+        }
+        assert!(random_seed_runs > 400, "{random_seed_runs}");
+        assert!(plateau_cases > 100, "{plateau_cases}");
     }
 
     #[test]
