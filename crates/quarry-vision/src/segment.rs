@@ -5,7 +5,7 @@ use crate::VisionError;
 use crate::blur::{Border, GaussianKernel, blur_rows};
 use crate::minima::{Connectivity, regional_minima};
 use crate::ramp::{checked_coefficients, ramp_axes, ramp_row};
-use crate::watershed::{WatershedOptions, flood_minima};
+use crate::watershed::{WatershedOptions, flood_minima, segment_descent};
 use quarry_core::{CoreError, Plane, Segmentation, Segmenter};
 
 /// Ramp + blur + watershed segmenter (implements [`Segmenter`]).
@@ -88,14 +88,20 @@ impl RampBlurWatershed {
     /// Segments `frame` and keeps the relief.
     pub fn run(&self, frame: &Plane<u8>) -> Result<SegmentOutput, VisionError> {
         let relief = self.relief(frame)?;
-        let seeds = regional_minima(&relief, self.connectivity)?;
-        let segmentation = flood_minima(
-            &relief,
-            seeds,
-            WatershedOptions {
-                connectivity: self.connectivity,
-            },
-        );
+        // one pass finds the minima and the labellers unless a minimum is a plateau
+        let segmentation = match segment_descent(&relief, self.connectivity) {
+            Some(s) => s,
+            None => {
+                let seeds = regional_minima(&relief, self.connectivity)?;
+                flood_minima(
+                    &relief,
+                    seeds,
+                    WatershedOptions {
+                        connectivity: self.connectivity,
+                    },
+                )
+            }
+        };
         Ok(SegmentOutput {
             relief,
             segmentation,

@@ -30,7 +30,7 @@
 
 use crate::VisionError;
 use crate::minima::{Connectivity, Minima, Relief, check_relief, regional_minima};
-use quarry_core::{Plane, Segmentation};
+use quarry_core::{MinimumInfo, Plane, Segmentation};
 
 /// Options of [`flood`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -275,23 +275,150 @@ fn flood_sorted<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: 
     }
 }
 
-/// `parent` marker of a seed pixel.
-const SEED: u32 = u32::MAX;
-/// `parent` marker of a pixel whose lowest neighbours tie (resolved by [`Descent::rank_cmp`]).
-const TIE: u32 = u32::MAX - 1;
-/// `parent` marker of a non-seed pixel without a strictly lower neighbour (inside a plateau).
-const PLATEAU: u32 = u32::MAX - 2;
+/// Pixel code of a seed (codes `0..K` name a pixel's labeller by its position in the
+/// connectivity's visiting order).
+const SEED: u8 = 250;
+/// Code of a pixel whose lowest neighbours tie (resolved by [`Descent::rank_cmp`]).
+const TIE: u8 = 251;
+/// Code of a non-seed pixel without a strictly lower neighbour (inside a plateau).
+const PLATEAU: u8 = 252;
+/// Code of a non-seed pixel below all its neighbours (a strict local minimum).
+const PIT: u8 = 253;
 
-/// The descent flood could not prove its shortcut (an unseeded regional minimum, or the
-/// comparison budget ran out on a pathological relief); the sorted flood runs instead.
+/// The descent flood could not prove its shortcut (an unseeded regional minimum, a `-0.0`
+/// value, or the comparison budget ran out on a pathological relief); the sorted flood runs
+/// instead.
 struct Bail;
 
 /// The flood proper: the descent flood when it applies, the presorted flood otherwise (both give
 /// the priority-queue order exactly).
 fn flood_labels<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: Connectivity) {
-    if d.len() >= PLATEAU as usize || flood_descent(d, w, labels, connectivity).is_err() {
+    if flood_descent(d, w, labels, connectivity).is_err() {
         flood_sorted(d, w, labels, connectivity);
     }
+}
+
+/// The code of one pixel of value `c` (not a seed) from its neighbours `n` in visiting order.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn code_of<T: Relief, const K: usize>(c: T, n: [T; K]) -> u8 {
+    let mut m = n[0];
+    for &v in &n[1..] {
+        m = if v < m { v } else { m };
+    }
+    let (mut cnt, mut first) = (0u8, 0u8);
+    for k in (0..K).rev() {
+        let e = n[k] == m;
+        cnt += u8::from(e);
+        first = if e { k as u8 } else { first };
+    }
+    if m < c {
+        if cnt == 1 { first } else { TIE }
+    } else if m == c {
+        PLATEAU
+    } else {
+        PIT
+    }
+}
+
+/// Codes every pixel (see [`SEED`]): seeds where `labels` is non-zero, the direction of the
+/// unique lowest neighbour when it is lower than the pixel, or [`TIE`] / [`PLATEAU`] / [`PIT`].
+/// Comparisons are the type's own (`<`, `==`), equal to `total_cmp` on finite values without
+/// `-0.0` (the caller rules those out).
+fn classify<T: Relief>(
+    d: &[T],
+    w: usize,
+    labels: Option<&[u32]>,
+    connectivity: Connectivity,
+    codes: &mut [u8],
+) {
+    let n = d.len();
+    let h = n / w;
+    let offs = connectivity.offsets();
+    let eight = connectivity == Connectivity::Eight;
+    for y in 0..h {
+        let row = y * w;
+        let out = &mut codes[row..row + w];
+        if y > 0 && y + 1 < h && w > 2 {
+            let (up, mid, down) = (&d[row - w..row], &d[row..row + w], &d[row + w..row + 2 * w]);
+            if eight {
+                for x in 1..w - 1 {
+                    out[x] = code_of(
+                        mid[x],
+                        [
+                            up[x - 1],
+                            up[x],
+                            up[x + 1],
+                            mid[x - 1],
+                            mid[x + 1],
+                            down[x - 1],
+                            down[x],
+                            down[x + 1],
+                        ],
+                    );
+                }
+            } else {
+                for x in 1..w - 1 {
+                    out[x] = code_of(mid[x], [up[x], mid[x - 1], mid[x + 1], down[x]]);
+                }
+            }
+        }
+        // the image border, with bounds checks
+        let edge = |x: usize| -> u8 {
+            let c = d[row + x];
+            let mut vals = [c; 8];
+            let mut m = None;
+            for (k, &(dx, dy)) in offs.iter().enumerate() {
+                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                if qx >= 0 && qy >= 0 && qx < w as isize && qy < h as isize {
+                    let v = d[qy as usize * w + qx as usize];
+                    vals[k] = v;
+                    if m.is_none_or(|m| v < m) {
+                        m = Some(v);
+                    }
+                }
+            }
+            let Some(m) = m else { return PIT };
+            let mut first = None;
+            let mut cnt = 0;
+            for (k, &(dx, dy)) in offs.iter().enumerate() {
+                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                if qx >= 0 && qy >= 0 && qx < w as isize && qy < h as isize && vals[k] == m {
+                    cnt += 1;
+                    first = first.or(Some(k as u8));
+                }
+            }
+            if m < c {
+                if cnt == 1 { first.unwrap_or(TIE) } else { TIE }
+            } else if m == c {
+                PLATEAU
+            } else {
+                PIT
+            }
+        };
+        if y == 0 || y + 1 == h || w <= 2 {
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = edge(x);
+            }
+        } else {
+            out[0] = edge(0);
+            out[w - 1] = edge(w - 1);
+        }
+        if let Some(l) = labels {
+            for (o, &l) in out.iter_mut().zip(&l[row..row + w]) {
+                if l != 0 {
+                    *o = SEED;
+                }
+            }
+        }
+    }
+}
+
+/// True when some value is `-0.0` (where `==` and `total_cmp` disagree).
+fn has_negative_zero<T: Relief>(d: &[T]) -> bool {
+    d.iter().fold(false, |a, v| {
+        a | (v.to_f64().to_bits() == (-0.0f64).to_bits())
+    })
 }
 
 /// The descent flood (see the module documentation): every pixel takes the label of its
@@ -307,71 +434,90 @@ fn flood_descent<T: Relief>(
     labels: &mut [u32],
     connectivity: Connectivity,
 ) -> Result<(), Bail> {
+    if has_negative_zero(d) {
+        return Err(Bail);
+    }
+    let mut codes = vec![0u8; d.len()];
+    classify(d, w, Some(labels), connectivity, &mut codes);
+    resolve(d, w, labels, connectivity, &mut codes)
+}
+
+/// Segments a relief from its own regional minima when none of them is a plateau (each is then
+/// a pixel below all its neighbours, found by the same pass that codes the labellers); `None`
+/// when a plateau or a `-0.0` value needs the general path (`regional_minima` + [`flood`]).
+pub(crate) fn segment_descent<T: Relief>(
+    relief: &Plane<T>,
+    connectivity: Connectivity,
+) -> Option<Segmentation> {
+    let d = &relief.data;
+    let w = relief.width as usize;
+    if d.is_empty() || has_negative_zero(d) {
+        return None;
+    }
+    let mut codes = vec![0u8; d.len()];
+    classify(d, w, None, connectivity, &mut codes);
+    if codes.iter().any(|&c| c == PLATEAU) {
+        return None;
+    }
+    let mut labels = vec![0u32; d.len()];
+    let mut minima = Vec::new();
+    for (p, c) in codes.iter_mut().enumerate() {
+        if *c == PIT {
+            *c = SEED;
+            let id = minima.len() as u32 + 1;
+            labels[p] = id;
+            minima.push(MinimumInfo {
+                id,
+                representative: ((p % w) as u32, (p / w) as u32),
+                size: 1,
+                value: d[p].to_f64(),
+            });
+        }
+    }
+    resolve(d, w, &mut labels, connectivity, &mut codes).ok()?;
+    Some(Segmentation {
+        labels: Plane {
+            width: relief.width,
+            height: relief.height,
+            data: labels,
+        },
+        minima,
+    })
+}
+
+/// Resolves the tie and plateau codes, then labels every pixel from its labeller.
+fn resolve<T: Relief>(
+    d: &[T],
+    w: usize,
+    labels: &mut [u32],
+    connectivity: Connectivity,
+    codes: &mut [u8],
+) -> Result<(), Bail> {
     let n = d.len();
-    let h = n / w;
     let offs = connectivity.offsets();
     let lin: Vec<isize> = offs
         .iter()
         .map(|&(dx, dy)| dy as isize * w as isize + dx as isize)
         .collect();
-    let key = |p: usize| level_key(d[p].to_f64());
-    let mut parent = vec![0u32; n];
-    let mut hard: Vec<(u64, u32)> = Vec::new();
-    for y in 0..h {
-        let row_inside = y > 0 && y + 1 < h;
-        let row = y * w;
-        for x in 0..w {
-            let p = row + x;
-            if labels[p] != 0 {
-                parent[p] = SEED;
-                continue;
-            }
-            // the least neighbour key, its pixel, and whether another neighbour shares it
-            let (mut best, mut arg, mut ties) = (u64::MAX, 0usize, false);
-            let mut see = |q: usize| {
-                let kq = key(q);
-                let lt = kq < best;
-                ties = if lt { false } else { ties | (kq == best) };
-                if lt {
-                    best = kq;
-                    arg = q;
-                }
-            };
-            if row_inside && x > 0 && x + 1 < w {
-                for &o in &lin {
-                    see(p.wrapping_add_signed(o));
-                }
-            } else {
-                for &(dx, dy) in offs {
-                    let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
-                    if qx >= 0 && qy >= 0 && qx < w as isize && qy < h as isize {
-                        see(qy as usize * w + qx as usize);
-                    }
-                }
-            }
-            let kp = key(p);
-            parent[p] = if best < kp && !ties {
-                arg as u32
-            } else if best < kp {
-                hard.push((kp, p as u32));
-                TIE
-            } else if best == kp {
-                hard.push((kp, p as u32));
-                PLATEAU
-            } else {
-                // a non-seed pixel below all its neighbours: an unseeded regional minimum
-                return Err(Bail);
-            };
-        }
+    if codes.contains(&PIT) {
+        // a non-seed pixel below all its neighbours: an unseeded regional minimum
+        return Err(Bail);
     }
+    let mut hard: Vec<(u64, u32)> = codes
+        .iter()
+        .enumerate()
+        .filter(|&(_, &c)| c == TIE || c == PLATEAU)
+        .map(|(p, _)| (level_key(d[p].to_f64()), p as u32))
+        .collect();
     if !hard.is_empty() {
         hard.sort_unstable();
         let mut ctx = Descent {
             d,
             w,
-            h,
+            h: n / w,
             offs,
-            parent: &mut parent,
+            lin: &lin,
+            codes: &mut *codes,
             budget: 64 * n + 4096,
             seen: Bits::new(0),
             stack: Vec::new(),
@@ -388,20 +534,20 @@ fn flood_descent<T: Relief>(
             // ties first: plateau entries at this level may be tie pixels themselves
             for &(_, p) in &hard[i..j] {
                 let p = p as usize;
-                if ctx.parent[p] == TIE {
-                    ctx.parent[p] = ctx.tie_parent(p)?;
+                if ctx.codes[p] == TIE {
+                    ctx.codes[p] = ctx.tie_code(p)?;
                 }
             }
             for &(_, p) in &hard[i..j] {
                 let p = p as usize;
-                if ctx.parent[p] == PLATEAU {
+                if ctx.codes[p] == PLATEAU {
                     ctx.plateau(p, k)?;
                 }
             }
             i = j;
         }
     }
-    // every non-seed pixel now has its labeller (lower rank, so the chains end at seeds)
+    // every non-seed pixel now names its labeller (of lower rank, so the chains end at seeds)
     let mut stack: Vec<usize> = Vec::new();
     for p in 0..n {
         if labels[p] != 0 {
@@ -410,7 +556,16 @@ fn flood_descent<T: Relief>(
         let mut q = p;
         while labels[q] == 0 {
             stack.push(q);
-            q = parent[q] as usize;
+            let Some(&o) = lin.get(usize::from(codes[q])) else {
+                // unreachable by construction; undo and let the sorted flood run
+                for (l, &c) in labels.iter_mut().zip(codes.iter()) {
+                    if c != SEED {
+                        *l = 0;
+                    }
+                }
+                return Err(Bail);
+            };
+            q = q.wrapping_add_signed(o);
         }
         let l = labels[q];
         for s in stack.drain(..) {
@@ -420,14 +575,15 @@ fn flood_descent<T: Relief>(
     Ok(())
 }
 
-/// The state of the tie and plateau resolution of [`flood_descent`].
+/// The state of the tie and plateau resolution of [`resolve`].
 struct Descent<'a, T> {
     d: &'a [T],
     w: usize,
     h: usize,
     offs: &'static [(i32, i32)],
-    /// labeller of each non-seed pixel (or a marker)
-    parent: &'a mut [u32],
+    lin: &'a [isize],
+    /// pixel codes (labeller directions once resolved)
+    codes: &'a mut [u8],
     /// rank-comparison steps left before giving up
     budget: usize,
     /// pixels already gathered into a plateau component (allocated on first use)
@@ -443,24 +599,17 @@ impl<T: Relief> Descent<'_, T> {
         level_key(self.d[p].to_f64())
     }
 
-    /// The in-image neighbours of `p`, in the connectivity's visiting order.
-    fn neighbours(&self, p: usize) -> impl Iterator<Item = usize> + use<T> {
+    /// `(visiting-order position, pixel)` of the in-image neighbours of `p`.
+    fn neighbours(&self, p: usize) -> impl Iterator<Item = (u8, usize)> + use<T> {
         let (w, h) = (self.w as isize, self.h as isize);
         let (x, y) = ((p % self.w) as isize, (p / self.w) as isize);
-        self.offs.iter().filter_map(move |&(dx, dy)| {
-            let (qx, qy) = (x + dx as isize, y + dy as isize);
-            (qx >= 0 && qy >= 0 && qx < w && qy < h).then(|| (qy * w + qx) as usize)
-        })
-    }
-
-    /// Position of neighbour `q` in `p`'s visiting order.
-    fn offset_index(&self, p: usize, q: usize) -> usize {
-        let dx = (q % self.w) as isize - (p % self.w) as isize;
-        let dy = (q / self.w) as isize - (p / self.w) as isize;
         self.offs
             .iter()
-            .position(|&(ox, oy)| ox as isize == dx && oy as isize == dy)
-            .unwrap_or(usize::MAX)
+            .enumerate()
+            .filter_map(move |(k, &(dx, dy))| {
+                let (qx, qy) = (x + dx as isize, y + dy as isize);
+                (qx >= 0 && qy >= 0 && qx < w && qy < h).then(|| (k as u8, (qy * w + qx) as usize))
+            })
     }
 
     /// Order of `x` and `y` in the priority-queue pop sequence: by key, then by push order.
@@ -476,44 +625,50 @@ impl<T: Relief> Descent<'_, T> {
             if kx != ky {
                 return Ok(kx.cmp(&ky));
             }
-            let (px, py) = (self.parent[x], self.parent[y]);
-            match (px == SEED, py == SEED) {
+            let (cx, cy) = (self.codes[x], self.codes[y]);
+            match (cx == SEED, cy == SEED) {
                 (true, true) => return Ok(x.cmp(&y)),
                 (true, false) => return Ok(Ordering::Less),
                 (false, true) => return Ok(Ordering::Greater),
                 (false, false) => {}
             }
-            if px >= PLATEAU || py >= PLATEAU || self.budget == 0 {
+            let (Some(&ox), Some(&oy)) =
+                (self.lin.get(usize::from(cx)), self.lin.get(usize::from(cy)))
+            else {
                 // an unresolved labeller cannot occur in processing order; give up safely
                 return Err(Bail);
-            }
-            if px == py {
-                let p = px as usize;
-                return Ok(self.offset_index(p, x).cmp(&self.offset_index(p, y)));
+            };
+            if self.budget == 0 {
+                return Err(Bail);
             }
             self.budget -= 1;
-            (x, y) = (px as usize, py as usize);
+            let (px, py) = (x.wrapping_add_signed(ox), y.wrapping_add_signed(oy));
+            if px == py {
+                // pushed by the same pop: in its visiting order, i.e. by the opposite direction
+                return Ok(cy.cmp(&cx));
+            }
+            (x, y) = (px, py);
         }
     }
 
-    /// The labeller of a tie pixel: the first popped of its lowest neighbours.
-    fn tie_parent(&mut self, p: usize) -> Result<u32, Bail> {
+    /// The labeller code of a tie pixel: the first popped of its lowest neighbours.
+    fn tie_code(&mut self, p: usize) -> Result<u8, Bail> {
         let best = self
             .neighbours(p)
-            .map(|q| self.key(q))
+            .map(|(_, q)| self.key(q))
             .min()
             .unwrap_or(u64::MAX);
-        let lowest: Vec<usize> = self
+        let lowest: Vec<(u8, usize)> = self
             .neighbours(p)
-            .filter(|&q| self.key(q) == best)
+            .filter(|&(_, q)| self.key(q) == best)
             .collect();
         let mut cur = lowest.first().copied().ok_or(Bail)?;
         for &q in &lowest[1..] {
-            if self.rank_cmp(q, cur)?.is_lt() {
+            if self.rank_cmp(q.1, cur.1)?.is_lt() {
                 cur = q;
             }
         }
-        Ok(cur as u32)
+        Ok(cur.0)
     }
 
     /// Floods the plateau component of interior pixel `s` (key `k`) exactly as the level-`k`
@@ -528,11 +683,11 @@ impl<T: Relief> Descent<'_, T> {
         self.stack.push(s);
         self.seen.set(s);
         while let Some(c) = self.stack.pop() {
-            for q in self.neighbours(c) {
+            for (_, q) in self.neighbours(c) {
                 if self.key(q) != k {
                     continue;
                 }
-                if self.parent[q] == PLATEAU {
+                if self.codes[q] == PLATEAU {
                     if !self.seen.get(q) {
                         self.seen.set(q);
                         self.stack.push(q);
@@ -554,15 +709,17 @@ impl<T: Relief> Descent<'_, T> {
         sorted?;
         self.queue.clear();
         self.queue.extend_from_slice(&self.entries);
+        let last = self.offs.len() - 1;
         let mut head = 0;
         while head < self.queue.len() {
             let e = self.queue[head];
             head += 1;
-            for q in self.neighbours(e) {
+            for (dir, q) in self.neighbours(e) {
                 // `seen`: members of this component only (an entry may also touch another
                 // interior component of the same level, flooded with its own entries)
-                if self.parent[q] == PLATEAU && self.seen.get(q) {
-                    self.parent[q] = e as u32;
+                if self.codes[q] == PLATEAU && self.seen.get(q) {
+                    // q's labeller e lies in the opposite direction
+                    self.codes[q] = (last - usize::from(dir)) as u8;
                     self.queue.push(q);
                 }
             }
@@ -681,6 +838,10 @@ pub fn watershed<T: Relief>(
     relief: &Plane<T>,
     options: WatershedOptions,
 ) -> Result<Segmentation, VisionError> {
+    check_relief(relief, "watershed")?;
+    if let Some(s) = segment_descent(relief, options.connectivity) {
+        return Ok(s);
+    }
     let seeds = regional_minima(relief, options.connectivity)?;
     flood(relief, &seeds, options)
 }
@@ -990,7 +1151,7 @@ mod tests {
     fn descent_flood_equals_priority_queue_flood() {
         use quarry_core::rng::RngCore;
         let mut rng = quarry_core::rng::seeded(23);
-        let (mut random_seed_runs, mut plateau_cases) = (0, 0);
+        let (mut random_seed_runs, mut plateau_cases, mut fused_runs) = (0, 0, 0);
         for case in 0..400u32 {
             let w = 1 + rng.next_u32() % 29;
             let h = 1 + rng.next_u32() % 19;
@@ -1011,6 +1172,15 @@ mod tests {
                     "case {case} {conn:?}: descent gave up with every minimum seeded"
                 );
                 assert_eq!(labels, b.labels.data, "case {case} {w}x{h} {conn:?}");
+                match segment_descent(&relief, conn) {
+                    Some(s) => {
+                        fused_runs += 1;
+                        assert_eq!(s, b, "case {case} fused minima {conn:?}");
+                    }
+                    // a plateau without a lower neighbour somewhere: the general path
+                    None => {}
+                }
+                assert_eq!(watershed(&relief, opts).unwrap(), b);
                 if minima.minima.iter().any(|m| m.size > 1) {
                     plateau_cases += 1;
                 }
@@ -1042,6 +1212,7 @@ mod tests {
         }
         assert!(random_seed_runs > 400, "{random_seed_runs}");
         assert!(plateau_cases > 100, "{plateau_cases}");
+        assert!(fused_runs > 100, "{fused_runs}");
     }
 
     #[test]
