@@ -298,26 +298,90 @@ fn flood_labels<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: 
     }
 }
 
-/// The code of one pixel of value `c` (not a seed) from its neighbours `n` in visiting order.
+/// Per-row buffers of [`code_row`].
+struct RowScratch<T> {
+    min: Vec<T>,
+    mask: Vec<u8>,
+}
+
+/// `code of a pixel` from the bit mask of its neighbours equal to the least one: the single
+/// set bit's position, or [`TIE`] for several.
+const MASK_CODE: [u8; 256] = {
+    let mut t = [TIE; 256];
+    let mut k = 0;
+    while k < 8 {
+        t[1 << k] = k as u8;
+        k += 1;
+    }
+    t
+};
+
+/// The codes of one row of interior pixels `c` (not seeds) from their neighbour rows `nb` in
+/// visiting order; dispatches to an AVX2 build of the same loops when the CPU has it (the
+/// comparisons are exact, so both builds give the same codes).
+#[inline]
+fn code_row<T: Relief, const K: usize>(
+    c: &[T],
+    nb: [&[T]; K],
+    out: &mut [u8],
+    scratch: &mut RowScratch<T>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above); the function is otherwise safe.
+        unsafe {
+            code_row_avx2(c, nb, out, scratch);
+        }
+        return;
+    }
+    code_row_body(c, nb, out, scratch);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn code_row_avx2<T: Relief, const K: usize>(
+    c: &[T],
+    nb: [&[T]; K],
+    out: &mut [u8],
+    scratch: &mut RowScratch<T>,
+) {
+    code_row_body(c, nb, out, scratch);
+}
+
+/// [`code_row`] as whole-row passes the compiler vectorises: the least neighbour, the mask of
+/// the neighbours equal to it, then the code.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn code_of<T: Relief, const K: usize>(c: T, n: [T; K]) -> u8 {
-    let mut m = n[0];
-    for &v in &n[1..] {
-        m = if v < m { v } else { m };
+fn code_row_body<T: Relief, const K: usize>(
+    c: &[T],
+    nb: [&[T]; K],
+    out: &mut [u8],
+    scratch: &mut RowScratch<T>,
+) {
+    let l = c.len();
+    let m = &mut scratch.min[..l];
+    let mask = &mut scratch.mask[..l];
+    m.copy_from_slice(&nb[0][..l]);
+    for row in &nb[1..] {
+        for (m, &v) in m.iter_mut().zip(&row[..l]) {
+            *m = if v < *m { v } else { *m };
+        }
     }
-    let (mut cnt, mut first) = (0u8, 0u8);
-    for k in (0..K).rev() {
-        let e = n[k] == m;
-        cnt += u8::from(e);
-        first = if e { k as u8 } else { first };
+    mask.fill(0);
+    for (k, row) in nb.iter().enumerate() {
+        for (b, (&v, &m)) in mask.iter_mut().zip(row[..l].iter().zip(m.iter())) {
+            *b |= u8::from(v == m) << k;
+        }
     }
-    if m < c {
-        if cnt == 1 { first } else { TIE }
-    } else if m == c {
-        PLATEAU
-    } else {
-        PIT
+    for ((o, &b), (&m, &v)) in out.iter_mut().zip(mask.iter()).zip(m.iter().zip(c)) {
+        *o = if m < v {
+            MASK_CODE[usize::from(b)]
+        } else if m == v {
+            PLATEAU
+        } else {
+            PIT
+        };
     }
 }
 
@@ -336,31 +400,37 @@ fn classify<T: Relief>(
     let h = n / w;
     let offs = connectivity.offsets();
     let eight = connectivity == Connectivity::Eight;
+    let mut scratch = RowScratch {
+        min: d[..w].to_vec(),
+        mask: vec![0; w],
+    };
     for y in 0..h {
         let row = y * w;
         let out = &mut codes[row..row + w];
         if y > 0 && y + 1 < h && w > 2 {
             let (up, mid, down) = (&d[row - w..row], &d[row..row + w], &d[row + w..row + 2 * w]);
+            let l = w - 2;
+            let c = &mid[1..=l];
+            let inner = &mut out[1..=l];
             if eight {
-                for x in 1..w - 1 {
-                    out[x] = code_of(
-                        mid[x],
-                        [
-                            up[x - 1],
-                            up[x],
-                            up[x + 1],
-                            mid[x - 1],
-                            mid[x + 1],
-                            down[x - 1],
-                            down[x],
-                            down[x + 1],
-                        ],
-                    );
-                }
+                let nb = [
+                    &up[..l],
+                    &up[1..=l],
+                    &up[2..],
+                    &mid[..l],
+                    &mid[2..],
+                    &down[..l],
+                    &down[1..=l],
+                    &down[2..],
+                ];
+                code_row(c, nb, inner, &mut scratch);
             } else {
-                for x in 1..w - 1 {
-                    out[x] = code_of(mid[x], [up[x], mid[x - 1], mid[x + 1], down[x]]);
-                }
+                code_row(
+                    c,
+                    [&up[1..=l], &mid[..l], &mid[2..], &down[1..=l]],
+                    inner,
+                    &mut scratch,
+                );
             }
         }
         // the image border, with bounds checks
@@ -552,6 +622,14 @@ fn resolve<T: Relief>(
     for p in 0..n {
         if labels[p] != 0 {
             continue;
+        }
+        // most labellers are labelled already (above or to the left, or chased before)
+        if let Some(&o) = lin.get(usize::from(codes[p])) {
+            let l = labels[p.wrapping_add_signed(o)];
+            if l != 0 {
+                labels[p] = l;
+                continue;
+            }
         }
         let mut q = p;
         while labels[q] == 0 {
