@@ -8,25 +8,45 @@
 //! fully deterministic. There are no watershed lines: every pixel gets a label in 1..K
 //! ([`boundary_mask`] gives a display-only boundary).
 //!
-//! # Implementation: a presorted scan instead of a priority queue
+//! # Implementation: labellers instead of a priority queue
 //!
-//! A pixel `q` pushed by a pixel popped at level `ℓ` gets the key `B(q)` when `B(q) > ℓ` (a
-//! *static* key: it does not depend on when `q` was pushed) and the key `ℓ` otherwise (it joins
-//! the first-in-first-out queue of the current level). Flood levels never decrease, so the pop
-//! order of one binary heap on `(level.total_cmp, seq)` is reproduced exactly by
+//! In the priority-queue flood every pixel `q` other than a seed takes the label of its
+//! *labeller*, the neighbour whose pop pushed it. Two exact shortcuts replace the queue:
 //!
-//! 1. sorting all pixels once by `B` (`total_cmp`; a counting sort into value buckets followed by
-//!    tiny per-bucket sorts), then
-//! 2. walking that order: at the group of pixels with value `v` the pixels already labelled are
-//!    exactly the static items of key `v` (they were pushed while the level was below `v`); they
-//!    are popped in push order (`seq`), and afterwards the FIFO of items pushed at level `v` is
-//!    drained. A pixel not yet labelled when the walk passes it will be pushed later at a higher
-//!    level and served by that level's FIFO.
+//! **Descent flood** (used whenever it applies). When every regional minimum holds a seed,
+//! no pixel is ever reached from above its own value (a lower unlabelled pixel would have a
+//! non-increasing path to a seed, all of whose pixels were popped earlier), so every pixel's key
+//! is its own value `B(q)` and pixels pop in `(B, push order)` order. The labeller of `q` is
+//! then simply its first-popped neighbour:
 //!
-//! Each pixel is touched a constant number of times (O(n) besides the bucket sorts), with no heap
-//! and no per-item sequence numbers except one `u32` per pixel. The result is identical to the
-//! priority-queue formulation (tested against a binary-heap reference on random reliefs with many
-//! ties, and on `photo_gray`).
+//! - the unique lowest neighbour, when one neighbour is strictly lowest and lower than `q`
+//!   (after the ramp and a float blur, all but a handful of pixels);
+//! - among several equally low neighbours, the first pushed. Push order is a pixel's rank
+//!   among equal values: seeds first in raster order, any other pixel by the rank of its own
+//!   labeller and then the visiting order of that pop, compared by walking both labeller chains
+//!   (`Descent::rank_cmp`);
+//! - inside a plateau without a lower neighbour, the level's first-in-first-out flood,
+//!   replayed per plateau component from its entry pixels sorted by rank.
+//!
+//! One row-wise pass (vectorised; an AVX2 build is dispatched at run time like the blur's)
+//! codes each pixel with the direction of its lowest neighbour or a tie/plateau/pit marker; the
+//! few tie and plateau pixels are resolved in value order; one sweep then copies labels down
+//! the labeller chains. [`RampBlurWatershed`](crate::RampBlurWatershed) and [`watershed`] also
+//! take the seeds from that pass: when no pixel is a plateau pixel, the regional minima are
+//! exactly the pixels below all their neighbours, so the minima need no pass of their own.
+//!
+//! **Presorted flood** (the fallback: seeds that leave a regional minimum unseeded, a `-0.0`
+//! value, where `==` and `total_cmp` disagree, or a pathological relief that exhausts the
+//! rank-comparison budget). A pushed pixel higher than the flood level has the static key
+//! `B(q)`, a lower one joins the FIFO of the current level, so the heap order is reproduced by
+//! sorting all pixels once by `B` (a counting sort into value buckets followed by tiny
+//! per-bucket sorts) and walking that order: at the group of pixels with value `v` the pixels
+//! already labelled are exactly the static items of key `v`; they are popped in push order,
+//! then the FIFO of items pushed at level `v` is drained.
+//!
+//! Both give results identical to the priority-queue formulation, tested against a binary-heap
+//! reference on random reliefs with many ties and plateaus (minima seeds, extra seeds, random
+//! seeds; f64 and f32), and on `photo_gray` (labels pinned by digests).
 
 use crate::VisionError;
 use crate::minima::{Connectivity, Minima, Relief, check_relief, regional_minima};
