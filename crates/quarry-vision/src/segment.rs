@@ -89,18 +89,17 @@ impl RampBlurWatershed {
     pub fn run(&self, frame: &Plane<u8>) -> Result<SegmentOutput, VisionError> {
         let relief = self.relief(frame)?;
         // one pass finds the minima and the labellers unless a minimum is a plateau
-        let segmentation = match segment_descent(&relief, self.connectivity) {
-            Some(s) => s,
-            None => {
-                let seeds = regional_minima(&relief, self.connectivity)?;
-                flood_minima(
-                    &relief,
-                    seeds,
-                    WatershedOptions {
-                        connectivity: self.connectivity,
-                    },
-                )
-            }
+        let segmentation = if let Some(s) = segment_descent(&relief, self.connectivity) {
+            s
+        } else {
+            let seeds = regional_minima(&relief, self.connectivity)?;
+            flood_minima(
+                &relief,
+                seeds,
+                WatershedOptions {
+                    connectivity: self.connectivity,
+                },
+            )
         };
         Ok(SegmentOutput {
             relief,

@@ -546,7 +546,7 @@ pub(crate) fn segment_descent<T: Relief>(
     }
     let mut codes = vec![0u8; d.len()];
     classify(d, w, None, connectivity, &mut codes);
-    if codes.iter().any(|&c| c == PLATEAU) {
+    if codes.contains(&PLATEAU) {
         return None;
     }
     let mut labels = vec![0u32; d.len()];
@@ -1270,13 +1270,10 @@ mod tests {
                     "case {case} {conn:?}: descent gave up with every minimum seeded"
                 );
                 assert_eq!(labels, b.labels.data, "case {case} {w}x{h} {conn:?}");
-                match segment_descent(&relief, conn) {
-                    Some(s) => {
-                        fused_runs += 1;
-                        assert_eq!(s, b, "case {case} fused minima {conn:?}");
-                    }
-                    // a plateau without a lower neighbour somewhere: the general path
-                    None => {}
+                // `None`: a plateau without a lower neighbour somewhere (the general path)
+                if let Some(s) = segment_descent(&relief, conn) {
+                    fused_runs += 1;
+                    assert_eq!(s, b, "case {case} fused minima {conn:?}");
                 }
                 assert_eq!(watershed(&relief, opts).unwrap(), b);
                 if minima.minima.iter().any(|m| m.size > 1) {
@@ -1289,7 +1286,7 @@ mod tests {
                     labels: Plane::new(w, h, 0u32),
                     minima: minima.minima.clone(),
                 };
-                for _ in 0..(1 + rng.next_u32() % 6) {
+                for _ in 0..=(rng.next_u32() % 6) {
                     let (x, y) = (rng.next_u32() % w, rng.next_u32() % h);
                     let id = 1 + rng.next_u32() % minima.len() as u32;
                     extra.labels.set(x, y, id);
