@@ -1310,6 +1310,48 @@ mod tests {
         assert!(fused_runs > 100, "{fused_runs}");
     }
 
+    /// `-0.0` next to `0.0` (equal for `==`, ordered by `total_cmp`): the descent flood declines
+    /// and the result still equals the reference.
+    #[test]
+    fn negative_zero_falls_back_to_the_reference_order() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(5);
+        for case in 0..60 {
+            let relief: Plane<f64> = Plane::from_fn(9, 7, |_, _| match rng.next_u32() % 4 {
+                0 => -0.0,
+                1 => 0.0,
+                2 => 1.0,
+                _ => -1.0,
+            });
+            let mut labels = Plane::new(9, 7, 0u32);
+            labels.set(rng.next_u32() % 9, rng.next_u32() % 7, 1);
+            labels.set(rng.next_u32() % 9, rng.next_u32() % 7, 2);
+            let seeds = Minima {
+                labels,
+                minima: regional_minima(&relief, Connectivity::Eight)
+                    .unwrap()
+                    .minima
+                    .into_iter()
+                    .cycle()
+                    .take(2)
+                    .collect(),
+            };
+            let mut l = seeds.labels.data.clone();
+            if relief
+                .data
+                .iter()
+                .any(|v: &f64| v.to_bits() == (-0.0f64).to_bits())
+            {
+                assert!(flood_descent(&relief.data, 9, &mut l, Connectivity::Eight).is_err());
+            }
+            for conn in [Connectivity::Four, Connectivity::Eight] {
+                let opts = WatershedOptions { connectivity: conn };
+                let b = reference::flood_reference(&relief, &seeds, opts).unwrap();
+                assert_eq!(flood(&relief, &seeds, opts).unwrap(), b, "case {case}");
+            }
+        }
+    }
+
     #[test]
     fn two_dips_split_at_ridge() {
         // two Gaussian dips at x = 10 and x = 30 of a 41x15 image: ridge at x = 20
