@@ -270,3 +270,50 @@ mod tests {
         );
     }
 }
+/// The fused path of [`RampBlurWatershed::run`] and [`crate::watershed::watershed`] (minima
+/// from the descent pass) against regional minima + the priority-queue reference, on random
+/// small frames (any grey-level count, σ 0.2–5.2, both connectivities) and raw reliefs with
+/// plateaus.
+#[cfg(test)]
+mod fused_vs_reference {
+    use super::*;
+    use crate::watershed::reference::flood_reference;
+    #[test]
+    fn random_frames_and_reliefs() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(99);
+        for case in 0..3000u32 {
+            let w = 2 + rng.next_u32() % 30;
+            let h = 2 + rng.next_u32() % 30;
+            let lv = 1 + rng.next_u32() % 256;
+            let frame = Plane::from_fn(w, h, |_, _| (rng.next_u32() % lv) as u8);
+            let sigma = 0.2 + f64::from(rng.next_u32() % 100) / 20.0;
+            let conn = if case % 2 == 0 {
+                Connectivity::Eight
+            } else {
+                Connectivity::Four
+            };
+            let seg = RampBlurWatershed {
+                sigma,
+                levels: 256,
+                connectivity: conn,
+            };
+            let fast = seg.run(&frame).unwrap();
+            let seeds = regional_minima(&fast.relief, conn).unwrap();
+            let r = flood_reference(
+                &fast.relief,
+                &seeds,
+                WatershedOptions { connectivity: conn },
+            )
+            .unwrap();
+            assert_eq!(fast.segmentation, r, "case {case}");
+            // raw value images with few levels through watershed()
+            let q = Plane::from_fn(w, h, |_, _| f64::from(rng.next_u32() % (1 + case % 7)));
+            let s =
+                crate::watershed::watershed(&q, WatershedOptions { connectivity: conn }).unwrap();
+            let m = regional_minima(&q, conn).unwrap();
+            let r = flood_reference(&q, &m, WatershedOptions { connectivity: conn }).unwrap();
+            assert_eq!(s, r, "case {case} raw");
+        }
+    }
+}
