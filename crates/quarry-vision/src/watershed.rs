@@ -931,7 +931,10 @@ impl<T: Relief> FloodState<'_, T> {
     }
 }
 
-/// Regional minima of `relief` followed by [`flood`] from them.
+/// Regional minima of `relief` followed by [`flood`] from them. When no minimum is a plateau the
+/// minima come from the flood's own first pass (the result is the same).
+///
+/// Errors: empty relief, NaN/infinite values, more than 2³² − 2 pixels.
 pub fn watershed<T: Relief>(
     relief: &Plane<T>,
     options: WatershedOptions,
