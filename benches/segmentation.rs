@@ -7,7 +7,8 @@
 //! * watershed of the same image from those seeds, 4-connected like
 //!   `skimage.segmentation.watershed` (and 8-connected);
 //! * the whole segmentation step of spec 004 (ramp + f64 blur σ = 8 + minima + watershed,
-//!   8-connected) on one thread, and its stages.
+//!   8-connected) on one thread, and its stages (minima + flood as separate calls, and
+//!   `watershed()`, which takes the minima from the flood's own pass).
 //!
 //! A second group, `segmentation-cpu`, measures the same single-thread workloads in *CPU time of
 //! the running thread* (`/proc/thread-self/schedstat`, Linux; the group is skipped elsewhere)
@@ -20,7 +21,7 @@
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use quarry::vision::{
     Connectivity, RampBlurWatershed, WatershedOptions, add_regular_ramp, flood, gaussian_blur_f32,
-    gaussian_blur_f64, regional_minima,
+    gaussian_blur_f64, regional_minima, watershed,
 };
 use std::fs;
 use std::hint::black_box;
@@ -96,6 +97,9 @@ fn segmentation(c: &mut Criterion) {
             black_box(flood(&relief, &s, WatershedOptions::default()).unwrap())
         });
     });
+    g.bench_function("watershed() 8-conn f64 relief (minima fused)", |b| {
+        b.iter(|| black_box(watershed(black_box(&relief), WatershedOptions::default()).unwrap()));
+    });
     g.bench_function("relief (ramp fused into f64 blur) 1 thread", |b| {
         b.iter(|| one.install(|| black_box(seg.relief(black_box(&img)).unwrap())));
     });
@@ -168,6 +172,9 @@ fn segmentation_cpu(c: &mut Criterion) {
     cpu("minima + watershed 8-conn f64 relief", &mut || {
         let s = regional_minima(black_box(&relief), Connectivity::Eight).unwrap();
         black_box(flood(&relief, &s, WatershedOptions::default()).unwrap());
+    });
+    cpu("watershed() 8-conn f64 relief (minima fused)", &mut || {
+        black_box(watershed(black_box(&relief), WatershedOptions::default()).unwrap());
     });
     cpu("whole step (ramp + blur + minima + watershed)", &mut || {
         black_box(seg.run(black_box(&img)).unwrap());

@@ -5,7 +5,7 @@ use crate::VisionError;
 use crate::blur::{Border, GaussianKernel, blur_rows};
 use crate::minima::{Connectivity, regional_minima};
 use crate::ramp::{checked_coefficients, ramp_axes, ramp_row};
-use crate::watershed::{WatershedOptions, flood_minima};
+use crate::watershed::{WatershedOptions, flood_minima, segment_descent};
 use quarry_core::{CoreError, Plane, Segmentation, Segmenter};
 
 /// Ramp + blur + watershed segmenter (implements [`Segmenter`]).
@@ -88,14 +88,19 @@ impl RampBlurWatershed {
     /// Segments `frame` and keeps the relief.
     pub fn run(&self, frame: &Plane<u8>) -> Result<SegmentOutput, VisionError> {
         let relief = self.relief(frame)?;
-        let seeds = regional_minima(&relief, self.connectivity)?;
-        let segmentation = flood_minima(
-            &relief,
-            seeds,
-            WatershedOptions {
-                connectivity: self.connectivity,
-            },
-        );
+        // one pass finds the minima and the labellers unless a minimum is a plateau
+        let segmentation = if let Some(s) = segment_descent(&relief, self.connectivity) {
+            s
+        } else {
+            let seeds = regional_minima(&relief, self.connectivity)?;
+            flood_minima(
+                &relief,
+                seeds,
+                WatershedOptions {
+                    connectivity: self.connectivity,
+                },
+            )
+        };
         Ok(SegmentOutput {
             relief,
             segmentation,
@@ -197,6 +202,52 @@ mod tests {
         }
     }
 
+    /// FNV-1a digest of a label image (pins the exact labels across implementations).
+    fn label_digest(labels: &[u32]) -> u64 {
+        labels.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &l| {
+            l.to_le_bytes()
+                .iter()
+                .fold(h, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+        })
+    }
+
+    /// The labels of `photo_gray` (whole step, 8-connected; and the 4-connected watershed of the
+    /// σ-8 f32 blur, the cv2/skimage benchmark workload) are pinned by digests taken from the
+    /// priority-queue implementation (`watershed::reference`), so any change of the flood that
+    /// alters a single label fails here.
+    #[cfg(feature = "io")]
+    #[test]
+    fn photo_gray_label_digests() {
+        use crate::blur::gaussian_blur_f32;
+        use crate::watershed::flood;
+        let photo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/bench-data/photo_gray.png");
+        if !photo.exists() {
+            eprintln!("skipped: no {}", photo.display());
+            return;
+        }
+        let frame = crate::io::load_gray(&photo).unwrap();
+        let seg = RampBlurWatershed::default().segment(&frame).unwrap();
+        let blurred = gaussian_blur_f32(&frame.map(|&v| f32::from(v)), 8.0).unwrap();
+        let seeds = regional_minima(&blurred, Connectivity::Four).unwrap();
+        let four = flood(
+            &blurred,
+            &seeds,
+            WatershedOptions {
+                connectivity: Connectivity::Four,
+            },
+        )
+        .unwrap();
+        let got = (
+            seg.n_regions(),
+            label_digest(&seg.labels.data),
+            four.n_regions(),
+            label_digest(&four.labels.data),
+        );
+        eprintln!("photo_gray digests {got:#x?}");
+        assert_eq!(got, (87, 0x71cb_07c9_608c_5132, 160, 0xe368_4d00_ae6f_a9ca));
+    }
+
     #[test]
     fn bad_input() {
         let seg = RampBlurWatershed::default();
@@ -217,5 +268,52 @@ mod tests {
                 .run(&Plane::new(4, 4, 0u8))
                 .is_err()
         );
+    }
+}
+/// The fused path of [`RampBlurWatershed::run`] and [`crate::watershed::watershed`] (minima
+/// from the descent pass) against regional minima + the priority-queue reference, on random
+/// small frames (any grey-level count, σ 0.2–5.2, both connectivities) and raw reliefs with
+/// plateaus.
+#[cfg(test)]
+mod fused_vs_reference {
+    use super::*;
+    use crate::watershed::reference::flood_reference;
+    #[test]
+    fn random_frames_and_reliefs() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(99);
+        for case in 0..3000u32 {
+            let w = 2 + rng.next_u32() % 30;
+            let h = 2 + rng.next_u32() % 30;
+            let lv = 1 + rng.next_u32() % 256;
+            let frame = Plane::from_fn(w, h, |_, _| (rng.next_u32() % lv) as u8);
+            let sigma = 0.2 + f64::from(rng.next_u32() % 100) / 20.0;
+            let conn = if case % 2 == 0 {
+                Connectivity::Eight
+            } else {
+                Connectivity::Four
+            };
+            let seg = RampBlurWatershed {
+                sigma,
+                levels: 256,
+                connectivity: conn,
+            };
+            let fast = seg.run(&frame).unwrap();
+            let seeds = regional_minima(&fast.relief, conn).unwrap();
+            let r = flood_reference(
+                &fast.relief,
+                &seeds,
+                WatershedOptions { connectivity: conn },
+            )
+            .unwrap();
+            assert_eq!(fast.segmentation, r, "case {case}");
+            // raw value images with few levels through watershed()
+            let q = Plane::from_fn(w, h, |_, _| f64::from(rng.next_u32() % (1 + case % 7)));
+            let s =
+                crate::watershed::watershed(&q, WatershedOptions { connectivity: conn }).unwrap();
+            let m = regional_minima(&q, conn).unwrap();
+            let r = flood_reference(&q, &m, WatershedOptions { connectivity: conn }).unwrap();
+            assert_eq!(s, r, "case {case} raw");
+        }
     }
 }

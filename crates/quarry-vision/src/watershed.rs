@@ -8,29 +8,49 @@
 //! fully deterministic. There are no watershed lines: every pixel gets a label in 1..K
 //! ([`boundary_mask`] gives a display-only boundary).
 //!
-//! # Implementation: a presorted scan instead of a priority queue
+//! # Implementation: labellers instead of a priority queue
 //!
-//! A pixel `q` pushed by a pixel popped at level `ℓ` gets the key `B(q)` when `B(q) > ℓ` (a
-//! *static* key: it does not depend on when `q` was pushed) and the key `ℓ` otherwise (it joins
-//! the first-in-first-out queue of the current level). Flood levels never decrease, so the pop
-//! order of one binary heap on `(level.total_cmp, seq)` is reproduced exactly by
+//! In the priority-queue flood every pixel `q` other than a seed takes the label of its
+//! *labeller*, the neighbour whose pop pushed it. Two exact shortcuts replace the queue:
 //!
-//! 1. sorting all pixels once by `B` (`total_cmp`; a counting sort into value buckets followed by
-//!    tiny per-bucket sorts), then
-//! 2. walking that order: at the group of pixels with value `v` the pixels already labelled are
-//!    exactly the static items of key `v` (they were pushed while the level was below `v`); they
-//!    are popped in push order (`seq`), and afterwards the FIFO of items pushed at level `v` is
-//!    drained. A pixel not yet labelled when the walk passes it will be pushed later at a higher
-//!    level and served by that level's FIFO.
+//! **Descent flood** (used whenever it applies). When every regional minimum holds a seed,
+//! no pixel is ever reached from above its own value (a lower unlabelled pixel would have a
+//! non-increasing path to a seed, all of whose pixels were popped earlier), so every pixel's key
+//! is its own value `B(q)` and pixels pop in `(B, push order)` order. The labeller of `q` is
+//! then simply its first-popped neighbour:
 //!
-//! Each pixel is touched a constant number of times (O(n) besides the bucket sorts), with no heap
-//! and no per-item sequence numbers except one `u32` per pixel. The result is identical to the
-//! priority-queue formulation (tested against a binary-heap reference on random reliefs with many
-//! ties, and on `photo_gray`).
+//! - the unique lowest neighbour, when one neighbour is strictly lowest and lower than `q`
+//!   (after the ramp and a float blur, all but a handful of pixels);
+//! - among several equally low neighbours, the first pushed. Push order is a pixel's rank
+//!   among equal values: seeds first in raster order, any other pixel by the rank of its own
+//!   labeller and then the visiting order of that pop, compared by walking both labeller chains
+//!   (`Descent::rank_cmp`);
+//! - inside a plateau without a lower neighbour, the level's first-in-first-out flood,
+//!   replayed per plateau component from its entry pixels sorted by rank.
+//!
+//! One row-wise pass (vectorised; an AVX2 build is dispatched at run time like the blur's)
+//! codes each pixel with the direction of its lowest neighbour or a tie/plateau/pit marker; the
+//! few tie and plateau pixels are resolved in value order; one sweep then copies labels down
+//! the labeller chains. [`RampBlurWatershed`](crate::RampBlurWatershed) and [`watershed`] also
+//! take the seeds from that pass: when no pixel is a plateau pixel, the regional minima are
+//! exactly the pixels below all their neighbours, so the minima need no pass of their own.
+//!
+//! **Presorted flood** (the fallback: seeds that leave a regional minimum unseeded, a `-0.0`
+//! value, where `==` and `total_cmp` disagree, or a pathological relief that exhausts the
+//! rank-comparison budget). A pushed pixel higher than the flood level has the static key
+//! `B(q)`, a lower one joins the FIFO of the current level, so the heap order is reproduced by
+//! sorting all pixels once by `B` (a counting sort into value buckets followed by tiny
+//! per-bucket sorts) and walking that order: at the group of pixels with value `v` the pixels
+//! already labelled are exactly the static items of key `v`; they are popped in push order,
+//! then the FIFO of items pushed at level `v` is drained.
+//!
+//! Both give results identical to the priority-queue formulation, tested against a binary-heap
+//! reference on random reliefs with many ties and plateaus (minima seeds, extra seeds, random
+//! seeds; f64 and f32), and on `photo_gray` (labels pinned by digests).
 
 use crate::VisionError;
 use crate::minima::{Connectivity, Minima, Relief, check_relief, regional_minima};
-use quarry_core::{Plane, Segmentation};
+use quarry_core::{MinimumInfo, Plane, Segmentation};
 
 /// Options of [`flood`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -91,7 +111,7 @@ pub fn flood<T: Relief>(
         .into());
     }
     let mut labels = seeds.labels.data.clone();
-    flood_sorted(
+    flood_labels(
         &relief.data,
         relief.width as usize,
         &mut labels,
@@ -115,7 +135,7 @@ pub(crate) fn flood_minima<T: Relief>(
     options: WatershedOptions,
 ) -> Segmentation {
     let Minima { mut labels, minima } = seeds;
-    flood_sorted(
+    flood_labels(
         &relief.data,
         relief.width as usize,
         &mut labels.data,
@@ -275,6 +295,569 @@ fn flood_sorted<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: 
     }
 }
 
+/// Pixel code of a seed (codes `0..K` name a pixel's labeller by its position in the
+/// connectivity's visiting order).
+const SEED: u8 = 250;
+/// Code of a pixel whose lowest neighbours tie (resolved by [`Descent::rank_cmp`]).
+const TIE: u8 = 251;
+/// Code of a non-seed pixel without a strictly lower neighbour (inside a plateau).
+const PLATEAU: u8 = 252;
+/// Code of a non-seed pixel below all its neighbours (a strict local minimum).
+const PIT: u8 = 253;
+
+/// The descent flood could not prove its shortcut (an unseeded regional minimum, a `-0.0`
+/// value, or the comparison budget ran out on a pathological relief); the sorted flood runs
+/// instead.
+struct Bail;
+
+/// The flood proper: the descent flood when it applies, the presorted flood otherwise (both give
+/// the priority-queue order exactly).
+fn flood_labels<T: Relief>(d: &[T], w: usize, labels: &mut [u32], connectivity: Connectivity) {
+    if flood_descent(d, w, labels, connectivity).is_err() {
+        flood_sorted(d, w, labels, connectivity);
+    }
+}
+
+/// Per-row buffers of [`code_row`].
+struct RowScratch<T> {
+    min: Vec<T>,
+    mask: Vec<u8>,
+}
+
+/// `code of a pixel` from the bit mask of its neighbours equal to the least one: the single
+/// set bit's position, or [`TIE`] for several.
+const MASK_CODE: [u8; 256] = {
+    let mut t = [TIE; 256];
+    let mut k = 0;
+    while k < 8 {
+        t[1 << k] = k as u8;
+        k += 1;
+    }
+    t
+};
+
+/// The codes of one row of interior pixels `c` (not seeds) from their neighbour rows `nb` in
+/// visiting order; dispatches to an AVX2 build of the same loops when the CPU has it (the
+/// comparisons are exact, so both builds give the same codes).
+#[inline]
+fn code_row<T: Relief, const K: usize>(
+    c: &[T],
+    nb: [&[T]; K],
+    out: &mut [u8],
+    scratch: &mut RowScratch<T>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU supports AVX2 (checked just above); the function is otherwise safe.
+        unsafe {
+            code_row_avx2(c, nb, out, scratch);
+        }
+        return;
+    }
+    code_row_body(c, nb, out, scratch);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn code_row_avx2<T: Relief, const K: usize>(
+    c: &[T],
+    nb: [&[T]; K],
+    out: &mut [u8],
+    scratch: &mut RowScratch<T>,
+) {
+    code_row_body(c, nb, out, scratch);
+}
+
+/// [`code_row`] as whole-row passes the compiler vectorises: the least neighbour, the mask of
+/// the neighbours equal to it, then the code.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn code_row_body<T: Relief, const K: usize>(
+    c: &[T],
+    nb: [&[T]; K],
+    out: &mut [u8],
+    scratch: &mut RowScratch<T>,
+) {
+    let l = c.len();
+    let m = &mut scratch.min[..l];
+    let mask = &mut scratch.mask[..l];
+    m.copy_from_slice(&nb[0][..l]);
+    for row in &nb[1..] {
+        for (m, &v) in m.iter_mut().zip(&row[..l]) {
+            *m = if v < *m { v } else { *m };
+        }
+    }
+    mask.fill(0);
+    for (k, row) in nb.iter().enumerate() {
+        for (b, (&v, &m)) in mask.iter_mut().zip(row[..l].iter().zip(m.iter())) {
+            *b |= u8::from(v == m) << k;
+        }
+    }
+    for ((o, &b), (&m, &v)) in out.iter_mut().zip(mask.iter()).zip(m.iter().zip(c)) {
+        *o = if m < v {
+            MASK_CODE[usize::from(b)]
+        } else if m == v {
+            PLATEAU
+        } else {
+            PIT
+        };
+    }
+}
+
+/// Codes every pixel (see [`SEED`]): seeds where `labels` is non-zero, the direction of the
+/// unique lowest neighbour when it is lower than the pixel, or [`TIE`] / [`PLATEAU`] / [`PIT`].
+/// Comparisons are the type's own (`<`, `==`), equal to `total_cmp` on finite values without
+/// `-0.0` (the caller rules those out).
+fn classify<T: Relief>(
+    d: &[T],
+    w: usize,
+    labels: Option<&[u32]>,
+    connectivity: Connectivity,
+    codes: &mut [u8],
+) {
+    let n = d.len();
+    let h = n / w;
+    let offs = connectivity.offsets();
+    let eight = connectivity == Connectivity::Eight;
+    let mut scratch = RowScratch {
+        min: d[..w].to_vec(),
+        mask: vec![0; w],
+    };
+    for y in 0..h {
+        let row = y * w;
+        let out = &mut codes[row..row + w];
+        if y > 0 && y + 1 < h && w > 2 {
+            let (up, mid, down) = (&d[row - w..row], &d[row..row + w], &d[row + w..row + 2 * w]);
+            let l = w - 2;
+            let c = &mid[1..=l];
+            let inner = &mut out[1..=l];
+            if eight {
+                let nb = [
+                    &up[..l],
+                    &up[1..=l],
+                    &up[2..],
+                    &mid[..l],
+                    &mid[2..],
+                    &down[..l],
+                    &down[1..=l],
+                    &down[2..],
+                ];
+                code_row(c, nb, inner, &mut scratch);
+            } else {
+                code_row(
+                    c,
+                    [&up[1..=l], &mid[..l], &mid[2..], &down[1..=l]],
+                    inner,
+                    &mut scratch,
+                );
+            }
+        }
+        // the image border, with bounds checks
+        let edge = |x: usize| -> u8 {
+            let c = d[row + x];
+            let mut vals = [c; 8];
+            let mut m = None;
+            for (k, &(dx, dy)) in offs.iter().enumerate() {
+                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                if qx >= 0 && qy >= 0 && qx < w as isize && qy < h as isize {
+                    let v = d[qy as usize * w + qx as usize];
+                    vals[k] = v;
+                    if m.is_none_or(|m| v < m) {
+                        m = Some(v);
+                    }
+                }
+            }
+            let Some(m) = m else { return PIT };
+            let mut first = None;
+            let mut cnt = 0;
+            for (k, &(dx, dy)) in offs.iter().enumerate() {
+                let (qx, qy) = (x as isize + dx as isize, y as isize + dy as isize);
+                if qx >= 0 && qy >= 0 && qx < w as isize && qy < h as isize && vals[k] == m {
+                    cnt += 1;
+                    first = first.or(Some(k as u8));
+                }
+            }
+            if m < c {
+                if cnt == 1 { first.unwrap_or(TIE) } else { TIE }
+            } else if m == c {
+                PLATEAU
+            } else {
+                PIT
+            }
+        };
+        if y == 0 || y + 1 == h || w <= 2 {
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = edge(x);
+            }
+        } else {
+            out[0] = edge(0);
+            out[w - 1] = edge(w - 1);
+        }
+        if let Some(l) = labels {
+            for (o, &l) in out.iter_mut().zip(&l[row..row + w]) {
+                if l != 0 {
+                    *o = SEED;
+                }
+            }
+        }
+    }
+}
+
+/// True when some value is `-0.0` (where `==` and `total_cmp` disagree).
+fn has_negative_zero<T: Relief>(d: &[T]) -> bool {
+    d.iter().fold(false, |a, v| {
+        a | (v.to_f64().to_bits() == (-0.0f64).to_bits())
+    })
+}
+
+/// The descent flood (see the module documentation): every pixel takes the label of its
+/// *labeller*, the neighbour whose pop pushed it in the priority-queue flood. When every
+/// regional minimum holds a seed, all keys equal the pixels' own values and the labeller is
+/// the neighbour of least `(value, push order)`; only ties need the push order, which is
+/// compared through the labellers' own ranks (`Descent::rank_cmp`).
+///
+/// Leaves `labels` as it found it when it returns `Err`.
+fn flood_descent<T: Relief>(
+    d: &[T],
+    w: usize,
+    labels: &mut [u32],
+    connectivity: Connectivity,
+) -> Result<(), Bail> {
+    if has_negative_zero(d) {
+        return Err(Bail);
+    }
+    let mut codes = vec![0u8; d.len()];
+    classify(d, w, Some(labels), connectivity, &mut codes);
+    resolve(d, w, labels, connectivity, &mut codes)
+}
+
+/// Segments a relief from its own regional minima when none of them is a plateau (each is then
+/// a pixel below all its neighbours, found by the same pass that codes the labellers); `None`
+/// when a plateau or a `-0.0` value needs the general path (`regional_minima` + [`flood`]).
+pub(crate) fn segment_descent<T: Relief>(
+    relief: &Plane<T>,
+    connectivity: Connectivity,
+) -> Option<Segmentation> {
+    let d = &relief.data;
+    let w = relief.width as usize;
+    if d.is_empty() || has_negative_zero(d) {
+        return None;
+    }
+    let mut codes = vec![0u8; d.len()];
+    classify(d, w, None, connectivity, &mut codes);
+    if codes.contains(&PLATEAU) {
+        return None;
+    }
+    let mut labels = vec![0u32; d.len()];
+    let mut minima = Vec::new();
+    for (p, c) in codes.iter_mut().enumerate() {
+        if *c == PIT {
+            *c = SEED;
+            let id = minima.len() as u32 + 1;
+            labels[p] = id;
+            minima.push(MinimumInfo {
+                id,
+                representative: ((p % w) as u32, (p / w) as u32),
+                size: 1,
+                value: d[p].to_f64(),
+            });
+        }
+    }
+    resolve(d, w, &mut labels, connectivity, &mut codes).ok()?;
+    Some(Segmentation {
+        labels: Plane {
+            width: relief.width,
+            height: relief.height,
+            data: labels,
+        },
+        minima,
+    })
+}
+
+/// Resolves the tie and plateau codes, then labels every pixel from its labeller.
+fn resolve<T: Relief>(
+    d: &[T],
+    w: usize,
+    labels: &mut [u32],
+    connectivity: Connectivity,
+    codes: &mut [u8],
+) -> Result<(), Bail> {
+    let n = d.len();
+    let offs = connectivity.offsets();
+    let lin: Vec<isize> = offs
+        .iter()
+        .map(|&(dx, dy)| dy as isize * w as isize + dx as isize)
+        .collect();
+    if codes.contains(&PIT) {
+        // a non-seed pixel below all its neighbours: an unseeded regional minimum
+        return Err(Bail);
+    }
+    let mut hard: Vec<(u64, u32)> = codes
+        .iter()
+        .enumerate()
+        .filter(|&(_, &c)| c == TIE || c == PLATEAU)
+        .map(|(p, _)| (level_key(d[p].to_f64()), p as u32))
+        .collect();
+    if !hard.is_empty() {
+        hard.sort_unstable();
+        let mut ctx = Descent {
+            d,
+            w,
+            h: n / w,
+            offs,
+            lin: &lin,
+            codes: &mut *codes,
+            budget: 64 * n + 4096,
+            seen: Bits::new(0),
+            stack: Vec::new(),
+            entries: Vec::new(),
+            queue: Vec::new(),
+        };
+        let mut i = 0;
+        while i < hard.len() {
+            let k = hard[i].0;
+            let mut j = i + 1;
+            while j < hard.len() && hard[j].0 == k {
+                j += 1;
+            }
+            // ties first: plateau entries at this level may be tie pixels themselves
+            for &(_, p) in &hard[i..j] {
+                let p = p as usize;
+                if ctx.codes[p] == TIE {
+                    ctx.codes[p] = ctx.tie_code(p)?;
+                }
+            }
+            for &(_, p) in &hard[i..j] {
+                let p = p as usize;
+                if ctx.codes[p] == PLATEAU {
+                    ctx.plateau(p, k)?;
+                }
+            }
+            i = j;
+        }
+    }
+    // every non-seed pixel now names its labeller (of lower rank, so the chains end at seeds)
+    let mut stack: Vec<usize> = Vec::new();
+    for p in 0..n {
+        if labels[p] != 0 {
+            continue;
+        }
+        // most labellers are labelled already (above or to the left, or chased before)
+        if let Some(&o) = lin.get(usize::from(codes[p])) {
+            let l = labels[p.wrapping_add_signed(o)];
+            if l != 0 {
+                labels[p] = l;
+                continue;
+            }
+        }
+        let mut q = p;
+        while labels[q] == 0 {
+            stack.push(q);
+            let Some(&o) = lin.get(usize::from(codes[q])) else {
+                // unreachable by construction; undo and let the sorted flood run
+                for (l, &c) in labels.iter_mut().zip(codes.iter()) {
+                    if c != SEED {
+                        *l = 0;
+                    }
+                }
+                return Err(Bail);
+            };
+            q = q.wrapping_add_signed(o);
+        }
+        let l = labels[q];
+        for s in stack.drain(..) {
+            labels[s] = l;
+        }
+    }
+    Ok(())
+}
+
+/// The state of the tie and plateau resolution of [`resolve`].
+struct Descent<'a, T> {
+    d: &'a [T],
+    w: usize,
+    h: usize,
+    offs: &'static [(i32, i32)],
+    lin: &'a [isize],
+    /// pixel codes (labeller directions once resolved)
+    codes: &'a mut [u8],
+    /// rank-comparison steps left before giving up
+    budget: usize,
+    /// pixels already gathered into a plateau component (allocated on first use)
+    seen: Bits,
+    stack: Vec<usize>,
+    entries: Vec<usize>,
+    queue: Vec<usize>,
+}
+
+impl<T: Relief> Descent<'_, T> {
+    #[inline]
+    fn key(&self, p: usize) -> u64 {
+        level_key(self.d[p].to_f64())
+    }
+
+    /// `(visiting-order position, pixel)` of the in-image neighbours of `p`.
+    fn neighbours(&self, p: usize) -> impl Iterator<Item = (u8, usize)> + use<T> {
+        let (w, h) = (self.w as isize, self.h as isize);
+        let (x, y) = ((p % self.w) as isize, (p / self.w) as isize);
+        self.offs
+            .iter()
+            .enumerate()
+            .filter_map(move |(k, &(dx, dy))| {
+                let (qx, qy) = (x + dx as isize, y + dy as isize);
+                (qx >= 0 && qy >= 0 && qx < w && qy < h).then(|| (k as u8, (qy * w + qx) as usize))
+            })
+    }
+
+    /// Order of `x` and `y` in the priority-queue pop sequence: by key, then by push order.
+    /// Seeds are pushed first, in raster order; any other pixel is pushed during its
+    /// labeller's pop, in that pop's visiting order.
+    fn rank_cmp(&mut self, mut x: usize, mut y: usize) -> Result<std::cmp::Ordering, Bail> {
+        use std::cmp::Ordering;
+        loop {
+            if x == y {
+                return Ok(Ordering::Equal);
+            }
+            let (kx, ky) = (self.key(x), self.key(y));
+            if kx != ky {
+                return Ok(kx.cmp(&ky));
+            }
+            let (cx, cy) = (self.codes[x], self.codes[y]);
+            match (cx == SEED, cy == SEED) {
+                (true, true) => return Ok(x.cmp(&y)),
+                (true, false) => return Ok(Ordering::Less),
+                (false, true) => return Ok(Ordering::Greater),
+                (false, false) => {}
+            }
+            let (Some(&ox), Some(&oy)) =
+                (self.lin.get(usize::from(cx)), self.lin.get(usize::from(cy)))
+            else {
+                // an unresolved labeller cannot occur in processing order; give up safely
+                return Err(Bail);
+            };
+            if self.budget == 0 {
+                return Err(Bail);
+            }
+            self.budget -= 1;
+            let (px, py) = (x.wrapping_add_signed(ox), y.wrapping_add_signed(oy));
+            if px == py {
+                // pushed by the same pop: in its visiting order, i.e. by the opposite direction
+                return Ok(cy.cmp(&cx));
+            }
+            (x, y) = (px, py);
+        }
+    }
+
+    /// The labeller code of a tie pixel: the first popped of its lowest neighbours.
+    fn tie_code(&mut self, p: usize) -> Result<u8, Bail> {
+        let best = self
+            .neighbours(p)
+            .map(|(_, q)| self.key(q))
+            .min()
+            .unwrap_or(u64::MAX);
+        let lowest: Vec<(u8, usize)> = self
+            .neighbours(p)
+            .filter(|&(_, q)| self.key(q) == best)
+            .collect();
+        let mut cur = lowest.first().copied().ok_or(Bail)?;
+        for &q in &lowest[1..] {
+            if self.rank_cmp(q.1, cur.1)?.is_lt() {
+                cur = q;
+            }
+        }
+        Ok(cur.0)
+    }
+
+    /// Floods the plateau component of interior pixel `s` (key `k`) exactly as the level-`k`
+    /// FIFO does: its entries (seeds, or pixels with a lower neighbour, adjacent to the
+    /// component) are popped in push order, then the first-in-first-out queue.
+    fn plateau(&mut self, s: usize, k: u64) -> Result<(), Bail> {
+        if self.seen.0.is_empty() {
+            self.seen = Bits::new(self.d.len());
+        }
+        self.entries.clear();
+        self.stack.clear();
+        self.stack.push(s);
+        self.seen.set(s);
+        while let Some(c) = self.stack.pop() {
+            for (_, q) in self.neighbours(c) {
+                if self.key(q) != k {
+                    continue;
+                }
+                if self.codes[q] == PLATEAU {
+                    if !self.seen.get(q) {
+                        self.seen.set(q);
+                        self.stack.push(q);
+                    }
+                } else {
+                    self.entries.push(q);
+                }
+            }
+        }
+        if self.entries.is_empty() {
+            // an unseeded regional minimum
+            return Err(Bail);
+        }
+        self.entries.sort_unstable();
+        self.entries.dedup();
+        let mut entries = std::mem::take(&mut self.entries);
+        let sorted = self.merge_sort_by_rank(&mut entries);
+        self.entries = entries;
+        sorted?;
+        self.queue.clear();
+        self.queue.extend_from_slice(&self.entries);
+        let last = self.offs.len() - 1;
+        let mut head = 0;
+        while head < self.queue.len() {
+            let e = self.queue[head];
+            head += 1;
+            for (dir, q) in self.neighbours(e) {
+                // `seen`: members of this component only (an entry may also touch another
+                // interior component of the same level, flooded with its own entries)
+                if self.codes[q] == PLATEAU && self.seen.get(q) {
+                    // q's labeller e lies in the opposite direction
+                    self.codes[q] = (last - usize::from(dir)) as u8;
+                    self.queue.push(q);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Stable bottom-up merge sort of `v` by [`Self::rank_cmp`] (fallible, so not `sort_by`).
+    fn merge_sort_by_rank(&mut self, v: &mut Vec<usize>) -> Result<(), Bail> {
+        let n = v.len();
+        let mut buf = vec![0usize; n];
+        let mut width = 1;
+        while width < n {
+            let mut lo = 0;
+            while lo < n {
+                let mid = (lo + width).min(n);
+                let hi = (lo + 2 * width).min(n);
+                let (mut i, mut j, mut o) = (lo, mid, lo);
+                while i < mid && j < hi {
+                    if self.rank_cmp(v[j], v[i])?.is_lt() {
+                        buf[o] = v[j];
+                        j += 1;
+                    } else {
+                        buf[o] = v[i];
+                        i += 1;
+                    }
+                    o += 1;
+                }
+                buf[o..o + (mid - i)].copy_from_slice(&v[i..mid]);
+                o += mid - i;
+                buf[o..o + (hi - j)].copy_from_slice(&v[j..hi]);
+                lo = hi;
+            }
+            std::mem::swap(v, &mut buf);
+            width *= 2;
+        }
+        Ok(())
+    }
+}
+
 struct FloodState<'a, T> {
     d: &'a [T],
     w: usize,
@@ -348,11 +931,18 @@ impl<T: Relief> FloodState<'_, T> {
     }
 }
 
-/// Regional minima of `relief` followed by [`flood`] from them.
+/// Regional minima of `relief` followed by [`flood`] from them. When no minimum is a plateau the
+/// minima come from the flood's own first pass (the result is the same).
+///
+/// Errors: empty relief, NaN/infinite values, more than 2³² − 2 pixels.
 pub fn watershed<T: Relief>(
     relief: &Plane<T>,
     options: WatershedOptions,
 ) -> Result<Segmentation, VisionError> {
+    check_relief(relief, "watershed")?;
+    if let Some(s) = segment_descent(relief, options.connectivity) {
+        return Ok(s);
+    }
     let seeds = regional_minima(relief, options.connectivity)?;
     flood(relief, &seeds, options)
 }
@@ -649,6 +1239,118 @@ mod tests {
                 let a = flood(&r32, &seeds, opts).unwrap();
                 let b = reference::flood_reference(&r32, &seeds, opts).unwrap();
                 assert_eq!(a, b, "case {case} f32 {w}x{h} {conn:?}");
+            }
+        }
+    }
+
+    /// The descent flood itself (not the fallback) reproduces the priority-queue flood: it must
+    /// succeed whenever every regional minimum holds a seed, and agree with the reference
+    /// whenever it succeeds (random seeds usually leave a minimum unseeded and make it give up).
+    /// Reliefs with few levels (plateaus, ties among lowest neighbours, plateau components
+    /// touching the same entries) and with many levels.
+    #[test]
+    fn descent_flood_equals_priority_queue_flood() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(23);
+        let (mut random_seed_runs, mut plateau_cases, mut fused_runs) = (0, 0, 0);
+        for case in 0..400u32 {
+            let w = 1 + rng.next_u32() % 29;
+            let h = 1 + rng.next_u32() % 19;
+            let levels = match case % 4 {
+                0 => 2,
+                1 => 3,
+                2 => 12,
+                _ => 5000,
+            };
+            let relief = Plane::from_fn(w, h, |_, _| f64::from(rng.next_u32() % levels) - 7.0);
+            for conn in [Connectivity::Four, Connectivity::Eight] {
+                let opts = WatershedOptions { connectivity: conn };
+                let minima = regional_minima(&relief, conn).unwrap();
+                let b = reference::flood_reference(&relief, &minima, opts).unwrap();
+                let mut labels = minima.labels.data.clone();
+                assert!(
+                    flood_descent(&relief.data, w as usize, &mut labels, conn).is_ok(),
+                    "case {case} {conn:?}: descent gave up with every minimum seeded"
+                );
+                assert_eq!(labels, b.labels.data, "case {case} {w}x{h} {conn:?}");
+                // `None`: a plateau without a lower neighbour somewhere (the general path)
+                if let Some(s) = segment_descent(&relief, conn) {
+                    fused_runs += 1;
+                    assert_eq!(s, b, "case {case} fused minima {conn:?}");
+                }
+                assert_eq!(watershed(&relief, opts).unwrap(), b);
+                if minima.minima.iter().any(|m| m.size > 1) {
+                    plateau_cases += 1;
+                }
+                // random extra seeds on top of the minima (the shortcut must still hold), and
+                // random seeds alone
+                let mut extra = minima.clone();
+                let mut alone = Minima {
+                    labels: Plane::new(w, h, 0u32),
+                    minima: minima.minima.clone(),
+                };
+                for _ in 0..=(rng.next_u32() % 6) {
+                    let (x, y) = (rng.next_u32() % w, rng.next_u32() % h);
+                    let id = 1 + rng.next_u32() % minima.len() as u32;
+                    extra.labels.set(x, y, id);
+                    alone.labels.set(x, y, id);
+                }
+                for seeds in [&extra, &alone] {
+                    let b = reference::flood_reference(&relief, seeds, opts).unwrap();
+                    let mut labels = seeds.labels.data.clone();
+                    if flood_descent(&relief.data, w as usize, &mut labels, conn).is_ok() {
+                        random_seed_runs += 1;
+                        assert_eq!(labels, b.labels.data, "case {case} extra seeds {conn:?}");
+                    } else {
+                        assert_eq!(labels, seeds.labels.data, "left the seeds as they were");
+                    }
+                    assert_eq!(flood(&relief, seeds, opts).unwrap(), b);
+                }
+            }
+        }
+        assert!(random_seed_runs > 400, "{random_seed_runs}");
+        assert!(plateau_cases > 100, "{plateau_cases}");
+        assert!(fused_runs > 100, "{fused_runs}");
+    }
+
+    /// `-0.0` next to `0.0` (equal for `==`, ordered by `total_cmp`): the descent flood declines
+    /// and the result still equals the reference.
+    #[test]
+    fn negative_zero_falls_back_to_the_reference_order() {
+        use quarry_core::rng::RngCore;
+        let mut rng = quarry_core::rng::seeded(5);
+        for case in 0..60 {
+            let relief: Plane<f64> = Plane::from_fn(9, 7, |_, _| match rng.next_u32() % 4 {
+                0 => -0.0,
+                1 => 0.0,
+                2 => 1.0,
+                _ => -1.0,
+            });
+            let mut labels = Plane::new(9, 7, 0u32);
+            labels.set(rng.next_u32() % 9, rng.next_u32() % 7, 1);
+            labels.set(rng.next_u32() % 9, rng.next_u32() % 7, 2);
+            let seeds = Minima {
+                labels,
+                minima: regional_minima(&relief, Connectivity::Eight)
+                    .unwrap()
+                    .minima
+                    .into_iter()
+                    .cycle()
+                    .take(2)
+                    .collect(),
+            };
+            let mut l = seeds.labels.data.clone();
+            if relief
+                .data
+                .iter()
+                .any(|v: &f64| v.to_bits() == (-0.0f64).to_bits())
+            {
+                assert!(flood_descent(&relief.data, 9, &mut l, Connectivity::Eight).is_err());
+            }
+            for conn in [Connectivity::Four, Connectivity::Eight] {
+                let opts = WatershedOptions { connectivity: conn };
+                let b = reference::flood_reference(&relief, &seeds, opts).unwrap();
+                assert_eq!(flood(&relief, &seeds, opts).unwrap(), b, "case {case}");
             }
         }
     }
