@@ -9,6 +9,11 @@
 //! - `lidar_frame/server_replay/K`: the same frames, server only (fusion + MeanShift + ICP +
 //!   Table 1); the client messages are precomputed.
 //!
+//! - `bg_scan/K`: spec §8's `bg_scan`, the background subtraction of one 1081-beam scan
+//!   (`faithful`: m = 40, region constraint, long-term background). One iteration = the 400
+//!   scans of scanner A from t = 7 s to 17 s (K people walking) from a fresh warmed-up model;
+//!   divide by 400 for the time per scan.
+//!
 //! The state comes from a 7 s warm-up (untimed setup; the background has learned the room and
 //! the tracks exist).
 //!
@@ -186,5 +191,50 @@ fn frames(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, frames);
+/// Scanner A's scans after the 7 s warm-up (400 of them) and its warmed-up background model.
+fn prepare_bg(people: u32) -> (Vec<quarry::core::PolarScan>, ChiSquareBackground) {
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = scenario(people);
+    let mut bg = background_of(&cfg, &sc.scanners[0].geometry).unwrap();
+    let mut runner = Runner::new(sc).unwrap();
+    let mut scans = Vec::new();
+    while let Some(ev) = runner.next_event().unwrap() {
+        if let RoomEvent::Scan(cs) = ev
+            && cs.scanner == 0
+        {
+            if cs.t_true.0 < 7_000_000 {
+                bg.classify_scan(&cs.scan).unwrap();
+            } else if scans.len() < 400 {
+                scans.push(cs.scan);
+            } else {
+                break;
+            }
+        }
+    }
+    (scans, bg)
+}
+
+fn bg_scan(c: &mut Criterion) {
+    let mut g = c.benchmark_group("bg_scan");
+    g.sample_size(20).measurement_time(Duration::from_secs(10));
+    for people in [5u32, 20] {
+        let (scans, bg) = prepare_bg(people);
+        assert_eq!(scans.len(), 400);
+        g.bench_function(BenchmarkId::from_parameter(people), |b| {
+            b.iter_batched(
+                || bg.clone(),
+                |mut bg| {
+                    for s in &scans {
+                        black_box(bg.classify_scan(s).unwrap());
+                    }
+                    bg
+                },
+                BatchSize::PerIteration,
+            );
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, frames, bg_scan);
 criterion_main!(benches);

@@ -123,12 +123,22 @@ pub fn region_constraint_scan(
     let d2max = delta * delta;
     // beams per full turn (wrap-around distance in beam indices)
     let per_turn = std::f64::consts::TAU / inc;
+    // The vote is `ns > nd` (or an empty neighbourhood). The non-candidates (people, mixed
+    // pixels) are few, so nd is counted first over them alone; then candidates are counted
+    // outward from beam n only until ns > nd. Same result as counting everything.
+    let non_cand: Vec<usize> = (0..n_beams)
+        .filter(|&j| points[j].is_some() && !candidate[j])
+        .collect();
     let mut out = vec![false; n_beams];
     for n in 0..n_beams {
         if !candidate[n] {
             continue;
         }
         let Some(p) = points[n] else { continue };
+        let near = |j: usize| {
+            points[j]
+                .is_some_and(|q| (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y) <= d2max)
+        };
         let r = p.x.hypot(p.y);
         let w = if r > delta {
             // +1 beam against rounding of the angles
@@ -136,38 +146,65 @@ pub fn region_constraint_scan(
         } else {
             f64::INFINITY
         };
-        let (mut ns, mut nd) = (0usize, 0usize);
-        let mut visit = |j: usize| {
-            if j == n {
-                return;
-            }
-            if let Some(q) = points[j]
-                && (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y) <= d2max
-            {
-                if candidate[j] {
-                    ns += 1;
-                } else {
-                    nd += 1;
-                }
-            }
-        };
+        // the index ranges (inclusive) that can hold neighbours: [lo, hi] around n, and the
+        // ranges within w across the wrap
         let wrap_from = per_turn - w; // |n − j| ≥ this is within w across the wrap
-        if !w.is_finite() || 2.0 * w + 1.0 >= n_beams as f64 || wrap_from <= w {
-            (0..n_beams).for_each(&mut visit);
+        let (lo, hi, wrap) = if !w.is_finite() || 2.0 * w + 1.0 >= n_beams as f64 || wrap_from <= w
+        {
+            (0, n_beams - 1, [None, None])
         } else {
             let wi = w as usize;
-            (n.saturating_sub(wi)..=(n + wi).min(n_beams - 1)).for_each(&mut visit);
+            let mut wrap: [Option<(usize, usize)>; 2] = [None, None];
             if wrap_from < n_beams as f64 {
                 let k = wrap_from.ceil() as usize;
                 if n >= k {
-                    (0..=n - k).for_each(&mut visit);
+                    wrap[0] = Some((0, n - k));
                 }
                 if n + k < n_beams {
-                    (n + k..n_beams).for_each(&mut visit);
+                    wrap[1] = Some((n + k, n_beams - 1));
+                }
+            }
+            (n.saturating_sub(wi), (n + wi).min(n_beams - 1), wrap)
+        };
+        let ranges = [Some((lo, hi)), wrap[0], wrap[1]];
+        let mut nd = 0usize;
+        for &(a, b) in ranges.iter().flatten() {
+            let from = non_cand.partition_point(|&j| j < a);
+            nd += non_cand[from..]
+                .iter()
+                .take_while(|&&j| j <= b)
+                .filter(|&&j| near(j))
+                .count();
+        }
+        if nd == 0 {
+            out[n] = true; // ns > 0 or an empty neighbourhood: static either way
+            continue;
+        }
+        let mut ns = 0usize;
+        let mut count = |j: usize| {
+            if j != n && candidate[j] && near(j) {
+                ns += 1;
+            }
+            ns > nd
+        };
+        // outward from n within [lo, hi], then the wrap ranges
+        let mut decided = false;
+        for d in 1..=(n - lo).max(hi - n) {
+            if (d <= n - lo && count(n - d)) || (n + d <= hi && count(n + d)) {
+                decided = true;
+                break;
+            }
+        }
+        if !decided {
+            'wrap: for &(a, b) in wrap.iter().flatten() {
+                for j in a..=b {
+                    if count(j) {
+                        break 'wrap;
+                    }
                 }
             }
         }
-        out[n] = (ns + nd == 0) || ns > nd;
+        out[n] = ns > nd;
     }
     Ok(out)
 }
@@ -836,7 +873,10 @@ mod tests {
             fov_deg in 10.0f64..360.0,
             seed in 0u64..1000,
             delta in 0.05f64..1.0,
+            non_candidate in prop_oneof![Just(0.3f64), 0.0f64..0.05],
         ) {
+            // non_candidate: the share of valid points that are not candidates; the small ones
+            // exercise the windows without any (decided without distance checks)
             let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
             let inc = fov_deg.to_radians() / n_beams as f64;
             let amin = -fov_deg.to_radians() / 2.0;
@@ -852,7 +892,7 @@ mod tests {
                 r += 0.02 * (u.sample(&mut rng) - 0.5);
                 let a = amin + inc * k as f64;
                 pts.push((u.sample(&mut rng) > 0.05).then(|| Point2::new(r * a.cos(), r * a.sin())));
-                cand.push(u.sample(&mut rng) < 0.7 && pts[k].is_some());
+                cand.push(u.sample(&mut rng) >= non_candidate && pts[k].is_some());
             }
             let a = region_constraint(&pts, &cand, delta).unwrap();
             let b = region_constraint_scan(&pts, &cand, delta, inc).unwrap();

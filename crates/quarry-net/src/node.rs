@@ -181,28 +181,52 @@ pub fn wait_for_server(
     )))
 }
 
-/// Publishes the end marker until the server acknowledges it (every 200 ms, at most
-/// `timeout`).
+/// Publishes the end marker until the server acknowledges it on `ack` (every 200 ms, at most
+/// `timeout`), then confirms with a bye. `ack` is declared before the node joins, so it exists
+/// at the server well before the first acknowledgement; the exchange is idempotent on both
+/// sides (the server re-acknowledges every end marker it receives and lingers until it has the
+/// bye or its linger time is over).
 fn finish(
     transport: &dyn Transport,
+    ack: &mut dyn Subscription,
     id: SensorId,
     end: &SimMessage,
     timeout: Duration,
 ) -> Result<(), NetError> {
-    let mut ack = transport.subscribe(&keys::end_ack(id))?;
     let bytes = end.encode()?;
     let t0 = Instant::now();
+    let mut sent = 0u32;
     while t0.elapsed() < timeout {
         transport.publish(&keys::end(id), &bytes)?;
+        sent += 1;
         if ack.recv_timeout(Duration::from_millis(200))?.is_some() {
+            trace(&format!(
+                "node {}: end acknowledged after {sent} end marker(s)",
+                id.0
+            ));
+            transport.publish(&keys::bye(id), b"bye")?;
             return Ok(());
         }
     }
     Err(NetError::Timeout(format!(
-        "the server did not acknowledge the end of sensor {} within {:.1} s",
+        "the server did not acknowledge the end of sensor {} within {:.1} s ({sent} end markers sent)",
         id.0,
         timeout.as_secs_f64()
     )))
+}
+
+/// Writes `msg` to stderr when `QUARRY_NET_TRACE` is set (protocol tracing for debugging a
+/// deployment; off by default).
+pub(crate) fn trace(msg: &str) {
+    if std::env::var_os("QUARRY_NET_TRACE").is_some() {
+        eprintln!("[quarry-net {:.3}] {msg}", trace_clock());
+    }
+}
+
+fn trace_clock() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() % 1000.0)
 }
 
 /// Virtual-time node: scanner `k` of `scenario`, background model of `cfg`. Publishes one
@@ -220,7 +244,9 @@ pub fn run_sim_node(
     let mut src = SimSource::new(scenario, k)?;
     let id = src.sensor();
     let mut client = ClientPipeline::new(id, background_of(cfg, &src.geometry())?);
+    let mut ack = transport.subscribe(&keys::end_ack(id))?;
     wait_for_server(transport, id, wait_server)?;
+    trace(&format!("node {}: joined", id.0));
     let key = keys::sim(id);
     let mut sum = NodeSummary {
         sensor: id.0,
@@ -255,7 +281,8 @@ pub fn run_sim_node(
         steps: step,
         t_end,
     });
-    finish(transport, id, &end, wait_server)?;
+    trace(&format!("node {}: {step} steps published", id.0));
+    finish(transport, ack.as_mut(), id, &end, wait_server)?;
     sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);
     Ok(sum)
 }
@@ -401,7 +428,9 @@ pub fn run_wall_node(
         seq: 0,
         replies: 0,
     };
+    let mut ack = transport.subscribe(&keys::end_ack(id))?;
     wait_for_server(transport, id, opts.wait_server)?;
+    trace(&format!("node {}: joined", id.0));
     let key = keys::scan(id);
     let hello = Message {
         header: Header {
@@ -482,7 +511,8 @@ pub fn run_wall_node(
         steps: u32::try_from(sum.scans).unwrap_or(u32::MAX),
         t_end: last_stamp,
     });
-    finish(transport, id, &end, opts.wait_server)?;
+    trace(&format!("node {}: {} scans published", id.0, sum.scans));
+    finish(transport, ack.as_mut(), id, &end, opts.wait_server)?;
     sum.sync_replies = syncer.replies;
     sum.offset_us = syncer.sync.applied_offset();
     sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);

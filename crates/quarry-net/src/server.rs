@@ -121,6 +121,61 @@ impl Beacon {
     }
 }
 
+/// How long a server waits, once its run is complete, for every node's bye (re-acknowledging
+/// the end markers of nodes that missed their acknowledgement) before it returns anyway.
+pub const END_LINGER: Duration = Duration::from_secs(3);
+
+/// The end of a run: every node has sent its end marker. Re-acknowledges every end marker that
+/// still arrives (a node whose acknowledgement was lost re-sends its marker every 200 ms) until
+/// every node has confirmed with a bye, at most [`END_LINGER`].
+fn linger(
+    transport: &dyn Transport,
+    sub: &mut dyn crate::transport::Subscription,
+    ids: &[SensorId],
+    byes: &mut [bool],
+) -> Result<(), NetError> {
+    let t0 = Instant::now();
+    while !byes.iter().all(|&b| b) && t0.elapsed() < END_LINGER {
+        let Some(r) = sub.recv_timeout(Duration::from_millis(50))? else {
+            continue;
+        };
+        let Some(k) = sensor_of_key(&r.key).and_then(|id| ids.iter().position(|&s| s == id)) else {
+            continue;
+        };
+        if r.key.starts_with(keys::END_PREFIX) {
+            transport.publish(&keys::end_ack(ids[k]), b"ok")?;
+        } else if r.key.starts_with(keys::BYE_PREFIX) {
+            byes[k] = true;
+        }
+    }
+    let missing: Vec<String> = ids
+        .iter()
+        .zip(byes.iter())
+        .filter(|(_, b)| !**b)
+        .map(|(s, _)| s.0.to_string())
+        .collect();
+    if missing.is_empty() {
+        crate::node::trace(&format!(
+            "server: every node confirmed its end after {:.3} s",
+            t0.elapsed().as_secs_f64()
+        ));
+    } else {
+        crate::node::trace(&format!(
+            "server: no bye from sensor(s) {} within {:.1} s",
+            missing.join(", "),
+            END_LINGER.as_secs_f64()
+        ));
+    }
+    Ok(())
+}
+
+/// Records a node's bye (it received its end acknowledgement).
+fn note_bye(key: &str, ids: &[SensorId], byes: &mut [bool]) {
+    if let Some(k) = sensor_of_key(key).and_then(|id| ids.iter().position(|&s| s == id)) {
+        byes[k] = true;
+    }
+}
+
 #[derive(Default)]
 struct NodeIn {
     next: u32,
@@ -153,7 +208,7 @@ pub fn run_sim_server(
     idle_timeout: Duration,
 ) -> Result<ServerRun, NetError> {
     let mut core = Core::new(sensors, cfg)?;
-    let mut sub = transport.subscribe("quarry/lidar/**")?;
+    let mut sub = transport.subscribe(keys::NODE_ALL)?;
     let mut beacon = Beacon {
         next: Instant::now(),
     };
@@ -165,6 +220,7 @@ pub fn run_sim_server(
     let mut next_frame = 0i64;
     let mut last_gt: Option<i64> = None;
     let mut last_rx = Instant::now();
+    let mut byes = vec![false; sensors.len()];
 
     // the in-process run's `deliver`: every copy that has arrived by `now`, then a poll
     let deliver = |core: &mut Core,
@@ -222,6 +278,12 @@ pub fn run_sim_server(
             // everything arrives, then the last frames close at their deadline
             let end = last_gt.unwrap_or(0) + 1_000_000;
             deliver(&mut core, &mut queue, &mut pending, end)?;
+            crate::node::trace(&format!(
+                "server: run complete, {} steps, {} frames",
+                core.run.steps, core.run.frames_tracked
+            ));
+            let ids = core.ids.clone();
+            linger(transport, sub.as_mut(), &ids, &mut byes)?;
             return Ok(core.finish());
         }
         beacon.tick(transport)?;
@@ -241,13 +303,17 @@ pub fn run_sim_server(
             }
             continue;
         };
-        if r.key.starts_with("quarry/lidar/join/") {
+        if r.key.starts_with(keys::JOIN_PREFIX) {
             if let Some(id) = sensor_of_key(&r.key).filter(|&id| core.index(id).is_some()) {
                 transport.publish(&keys::welcome(id), b"welcome")?;
             }
             continue;
         }
-        if !(r.key.starts_with("quarry/lidar/sim/") || r.key.starts_with("quarry/lidar/end/")) {
+        if r.key.starts_with(keys::BYE_PREFIX) {
+            note_bye(&r.key, &core.ids, &mut byes);
+            continue;
+        }
+        if !(r.key.starts_with(keys::SIM_PREFIX) || r.key.starts_with(keys::END_PREFIX)) {
             continue;
         }
         last_rx = Instant::now();
@@ -277,6 +343,10 @@ pub fn run_sim_server(
                     )));
                 }
                 n.end_steps = Some(e.steps);
+                crate::node::trace(&format!(
+                    "server: end of sensor {} ({} steps, {} received)",
+                    sensor.0, e.steps, n.next
+                ));
                 transport.publish(&keys::end_ack(sensor), b"ok")?;
             }
             SimMessage::Step(s) => {
@@ -336,13 +406,14 @@ pub fn run_wall_server(
     opts: &WallServerOptions,
 ) -> Result<ServerRun, NetError> {
     let mut core = Core::new(sensors, cfg)?;
-    let mut sub = transport.subscribe("quarry/lidar/**")?;
+    let mut sub = transport.subscribe(keys::NODE_ALL)?;
     let mut beacon = Beacon {
         next: Instant::now(),
     };
     let start = Instant::now();
     let now = || TimeUs(start.elapsed().as_micros() as i64);
     let mut ended = vec![false; sensors.len()];
+    let mut byes = vec![false; sensors.len()];
     let mut last_rx: Option<Instant> = None;
     let mut next_poll = Instant::now();
     loop {
@@ -351,17 +422,19 @@ pub fn run_wall_server(
         if let Some(r) = sub.recv_timeout(wait)? {
             let arrival = now();
             let sensor = sensor_of_key(&r.key);
-            if r.key.starts_with("quarry/lidar/join/") {
+            if r.key.starts_with(keys::JOIN_PREFIX) {
                 if let Some(id) = sensor.filter(|&id| core.index(id).is_some()) {
                     transport.publish(&keys::welcome(id), b"welcome")?;
                 }
-            } else if r.key.starts_with("quarry/lidar/scan/") {
+            } else if r.key.starts_with(keys::BYE_PREFIX) {
+                note_bye(&r.key, &core.ids, &mut byes);
+            } else if r.key.starts_with(keys::SCAN_PREFIX) {
                 last_rx = Some(Instant::now());
                 core.server
                     .fusion
                     .assembler
                     .on_datagram(&r.payload, arrival);
-            } else if r.key.starts_with("quarry/lidar/sync/req/") {
+            } else if r.key.starts_with(keys::SYNC_REQUEST_PREFIX) {
                 if let Ok(m) = Message::decode(&r.payload)
                     && m.header.kind == Kind::SyncRequest
                     && Some(m.header.sensor) == sensor
@@ -386,7 +459,7 @@ pub fn run_wall_server(
                 } else {
                     core.run.rejected += 1;
                 }
-            } else if r.key.starts_with("quarry/lidar/end/") {
+            } else if r.key.starts_with(keys::END_PREFIX) {
                 match SimMessage::decode(&r.payload) {
                     Ok(SimMessage::End(e)) if Some(e.sensor) == sensor => {
                         if let Some(k) = core.index(e.sensor) {
@@ -410,6 +483,10 @@ pub fn run_wall_server(
             let fc = cfg.tau_sync_s + cfg.l_max_s + cfg.frame_period_s;
             let flush = TimeUs(now().0 + (fc * 1e6).round() as i64);
             core.poll(transport, flush)?;
+            if all_ended {
+                let ids = core.ids.clone();
+                linger(transport, sub.as_mut(), &ids, &mut byes)?;
+            }
             return Ok(core.finish());
         }
     }

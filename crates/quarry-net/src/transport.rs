@@ -9,41 +9,69 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 /// The key names used by nodes and the server.
+///
+/// Everything a node sends lives under [`NODE_ALL`](keys::NODE_ALL) (`quarry/lidar/node/**`),
+/// everything the server sends outside it. The server subscribes to `NODE_ALL` only: a
+/// subscription that also matched the server's own publications (tracks, acknowledgements,
+/// beacon) would be fed by the server's own thread, and with a bounded receive queue (zenoh's
+/// FIFO handler holds 256 samples and blocks when full) a queue full of node data then blocks
+/// that thread in `publish`, the only thread that empties the queue: a deadlock.
 pub mod keys {
     use quarry_core::SensorId;
 
+    /// Every key a node publishes on (the server's one subscription).
+    pub const NODE_ALL: &str = "quarry/lidar/node/**";
+    /// The prefix of [`scan`] keys.
+    pub const SCAN_PREFIX: &str = "quarry/lidar/node/scan/";
+    /// The prefix of [`sync_request`] keys.
+    pub const SYNC_REQUEST_PREFIX: &str = "quarry/lidar/node/sync/";
+    /// The prefix of [`sim`] keys.
+    pub const SIM_PREFIX: &str = "quarry/lidar/node/sim/";
+    /// The prefix of [`end`] keys.
+    pub const END_PREFIX: &str = "quarry/lidar/node/end/";
+    /// The prefix of [`join`] keys.
+    pub const JOIN_PREFIX: &str = "quarry/lidar/node/join/";
+    /// The prefix of [`bye`] keys.
+    pub const BYE_PREFIX: &str = "quarry/lidar/node/bye/";
+
     /// Wall-clock mode: §7.1 wire datagrams (DynamicScan, Hello) of sensor `id`.
     pub fn scan(id: SensorId) -> String {
-        format!("quarry/lidar/scan/{}", id.0)
+        format!("{SCAN_PREFIX}{}", id.0)
     }
     /// Everything published on [`scan`] keys.
-    pub const SCAN_ALL: &str = "quarry/lidar/scan/*";
+    pub const SCAN_ALL: &str = "quarry/lidar/node/scan/*";
     /// Wall-clock mode: §7.3 SyncRequest of sensor `id` (node to server).
     pub fn sync_request(id: SensorId) -> String {
-        format!("quarry/lidar/sync/req/{}", id.0)
+        format!("{SYNC_REQUEST_PREFIX}{}", id.0)
     }
     /// Every sync request.
-    pub const SYNC_REQUEST_ALL: &str = "quarry/lidar/sync/req/*";
+    pub const SYNC_REQUEST_ALL: &str = "quarry/lidar/node/sync/*";
     /// Wall-clock mode: §7.3 SyncReply to sensor `id` (server to node).
     pub fn sync_reply(id: SensorId) -> String {
         format!("quarry/lidar/sync/rep/{}", id.0)
     }
     /// Virtual-time mode: [`crate::SimStep`] envelopes of sensor `id`.
     pub fn sim(id: SensorId) -> String {
-        format!("quarry/lidar/sim/{}", id.0)
+        format!("{SIM_PREFIX}{}", id.0)
     }
     /// Every sim envelope.
-    pub const SIM_ALL: &str = "quarry/lidar/sim/*";
-    /// End-of-stream markers ([`crate::EndOfStream`]) of sensor `id` (both modes).
+    pub const SIM_ALL: &str = "quarry/lidar/node/sim/*";
+    /// End-of-stream markers ([`crate::EndOfStream`]) of sensor `id` (both modes), repeated
+    /// until the server acknowledges them.
     pub fn end(id: SensorId) -> String {
-        format!("quarry/lidar/end/{}", id.0)
+        format!("{END_PREFIX}{}", id.0)
     }
     /// Every end marker.
-    pub const END_ALL: &str = "quarry/lidar/end/*";
+    pub const END_ALL: &str = "quarry/lidar/node/end/*";
     /// The server's acknowledgement of sensor `id`'s end marker (the node exits only after it,
     /// so nothing it published is lost in its send queue).
     pub fn end_ack(id: SensorId) -> String {
         format!("quarry/lidar/endack/{}", id.0)
+    }
+    /// The node's confirmation that it received [`end_ack`] (the server stops re-sending the
+    /// acknowledgement and may exit once every node has said it).
+    pub fn bye(id: SensorId) -> String {
+        format!("{BYE_PREFIX}{}", id.0)
     }
     /// The server's track messages ([`crate::TrackMessage`]), one per closed frame.
     pub const TRACKS: &str = "quarry/lidar/tracks";
@@ -52,11 +80,42 @@ pub mod keys {
     /// A node asking to join (repeated until welcomed): proves the node-to-server route exists
     /// before the node publishes data (a pub/sub engine drops what no subscriber matched yet).
     pub fn join(id: SensorId) -> String {
-        format!("quarry/lidar/join/{}", id.0)
+        format!("{JOIN_PREFIX}{}", id.0)
     }
     /// The server's answer to [`join`].
     pub fn welcome(id: SensorId) -> String {
         format!("quarry/lidar/welcome/{}", id.0)
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+        use crate::transport::key_matches;
+
+        /// The server's subscription matches every node key and none of its own.
+        #[test]
+        fn the_server_subscription_excludes_the_server_publications() {
+            let id = SensorId(7);
+            for k in [
+                scan(id),
+                sync_request(id),
+                sim(id),
+                end(id),
+                join(id),
+                bye(id),
+            ] {
+                assert!(key_matches(NODE_ALL, &k), "{k}");
+            }
+            for k in [
+                sync_reply(id),
+                end_ack(id),
+                welcome(id),
+                TRACKS.to_string(),
+                SERVER_READY.to_string(),
+            ] {
+                assert!(!key_matches(NODE_ALL, &k), "{k}");
+            }
+        }
     }
 }
 
@@ -100,20 +159,51 @@ pub fn key_matches(pattern: &str, key: &str) -> bool {
     go(&p, &k)
 }
 
-type Subscribers = Vec<(String, mpsc::Sender<Received>)>;
+#[derive(Debug, Clone)]
+enum Tx {
+    Unbounded(mpsc::Sender<Received>),
+    Bounded(mpsc::SyncSender<Received>),
+}
+
+impl Tx {
+    fn send(&self, r: Received) -> bool {
+        match self {
+            Tx::Unbounded(tx) => tx.send(r).is_ok(),
+            Tx::Bounded(tx) => tx.send(r).is_ok(),
+        }
+    }
+}
+
+#[derive(Debug, Default)]
+struct Subscribers {
+    next_id: u64,
+    list: Vec<(u64, String, Tx)>,
+}
 
 /// The in-process transport: every clone of a `LocalBus` shares the same subscribers, so
-/// threads of one process (the simulator, tests) talk through it. Publishing never blocks:
-/// the channels are unbounded.
+/// threads of one process (the simulator, tests) talk through it. [`LocalBus::new`] never
+/// blocks (unbounded queues); [`LocalBus::bounded`] gives every subscription a queue of fixed
+/// capacity and blocks the publisher while a matching queue is full, as zenoh's FIFO handler
+/// does (256 samples), so tests see the same back-pressure as a zenoh deployment.
 #[derive(Debug, Clone, Default)]
 pub struct LocalBus {
     subs: Arc<Mutex<Subscribers>>,
+    capacity: Option<usize>,
 }
 
 impl LocalBus {
-    /// An empty bus.
+    /// An empty bus with unbounded queues.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// An empty bus whose subscriptions hold at most `capacity` samples (at least 1); a
+    /// publisher waits while a matching subscription's queue is full.
+    pub fn bounded(capacity: usize) -> Self {
+        Self {
+            subs: Arc::default(),
+            capacity: Some(capacity.max(1)),
+        }
     }
 }
 
@@ -133,35 +223,62 @@ impl Subscription for LocalSub {
     }
 }
 
+fn poisoned<T>(_: T) -> NetError {
+    NetError::Transport("local bus lock poisoned".into())
+}
+
 impl Transport for LocalBus {
     fn publish(&self, key: &str, payload: &[u8]) -> Result<(), NetError> {
-        let mut subs = self
+        // send outside the lock: a bounded send may wait for its subscriber
+        let targets: Vec<(u64, Tx)> = self
             .subs
             .lock()
-            .map_err(|_| NetError::Transport("local bus lock poisoned".into()))?;
-        subs.retain(|(pattern, tx)| {
-            !key_matches(pattern, key)
-                || tx
-                    .send(Received {
-                        key: key.to_string(),
-                        payload: payload.to_vec(),
-                    })
-                    .is_ok()
-        });
+            .map_err(poisoned)?
+            .list
+            .iter()
+            .filter(|(_, pattern, _)| key_matches(pattern, key))
+            .map(|(id, _, tx)| (*id, tx.clone()))
+            .collect();
+        let mut gone = Vec::new();
+        for (id, tx) in targets {
+            let r = Received {
+                key: key.to_string(),
+                payload: payload.to_vec(),
+            };
+            if !tx.send(r) {
+                gone.push(id);
+            }
+        }
+        if !gone.is_empty() {
+            self.subs
+                .lock()
+                .map_err(poisoned)?
+                .list
+                .retain(|(id, _, _)| !gone.contains(id));
+        }
         Ok(())
     }
 
     fn subscribe(&self, pattern: &str) -> Result<Box<dyn Subscription>, NetError> {
-        let (tx, rx) = mpsc::channel();
-        self.subs
-            .lock()
-            .map_err(|_| NetError::Transport("local bus lock poisoned".into()))?
-            .push((pattern.to_string(), tx));
+        let (tx, rx) = match self.capacity {
+            None => {
+                let (tx, rx) = mpsc::channel();
+                (Tx::Unbounded(tx), rx)
+            }
+            Some(c) => {
+                let (tx, rx) = mpsc::sync_channel(c);
+                (Tx::Bounded(tx), rx)
+            }
+        };
+        let mut subs = self.subs.lock().map_err(poisoned)?;
+        let id = subs.next_id;
+        subs.next_id += 1;
+        subs.list.push((id, pattern.to_string(), tx));
         Ok(Box::new(LocalSub { rx }))
     }
 }
 
-/// The sensor id at the end of a key such as `quarry/lidar/scan/2`.
+/// The sensor id at the end of a key such as `quarry/lidar/node/scan/2`.
 pub fn sensor_of_key(key: &str) -> Option<quarry_core::SensorId> {
     key.rsplit('/')
         .next()?
@@ -187,10 +304,10 @@ mod tests {
             &keys::scan(quarry_core::SensorId(3))
         ));
         assert_eq!(
-            sensor_of_key("quarry/lidar/scan/3"),
+            sensor_of_key("quarry/lidar/node/scan/3"),
             Some(quarry_core::SensorId(3))
         );
-        assert_eq!(sensor_of_key("quarry/lidar/scan/x"), None);
+        assert_eq!(sensor_of_key("quarry/lidar/node/scan/x"), None);
     }
 
     #[test]
@@ -204,6 +321,6 @@ mod tests {
         assert!(b.recv_timeout(Duration::from_millis(10)).unwrap().is_none());
         drop(a);
         bus.publish("t/2", b"y").unwrap(); // the dropped subscriber is removed, no error
-        assert_eq!(bus.subs.lock().unwrap().len(), 1);
+        assert_eq!(bus.subs.lock().unwrap().list.len(), 1);
     }
 }

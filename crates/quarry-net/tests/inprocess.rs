@@ -3,11 +3,12 @@
 
 use quarry_core::TimeUs;
 use quarry_net::{
-    LocalBus, SensorSpec, SimSource, WallNodeOptions, WallServerOptions, run_sim_node,
-    run_sim_server, run_wall_node, run_wall_server,
+    LocalBus, NetError, Received, SensorSpec, SimSource, Subscription, Transport, WallNodeOptions,
+    WallServerOptions, keys, run_sim_node, run_sim_server, run_wall_node, run_wall_server,
 };
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
 use quarry_trackers::lidar_people::{LidarPeopleConfig, run_room_default};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 fn sensors(sc: &Scenario) -> Vec<SensorSpec> {
@@ -18,7 +19,14 @@ fn sensors(sc: &Scenario) -> Vec<SensorSpec> {
 }
 
 fn networked(sc: &Scenario, cfg: &LidarPeopleConfig) -> quarry_net::ServerRun {
-    let bus = LocalBus::new();
+    networked_over(&LocalBus::new(), sc, cfg)
+}
+
+fn networked_over<T: Transport + Clone + 'static>(
+    bus: &T,
+    sc: &Scenario,
+    cfg: &LidarPeopleConfig,
+) -> quarry_net::ServerRun {
     let nodes: Vec<_> = (0..sc.scanners.len())
         .map(|k| {
             let (bus, sc, cfg) = (bus.clone(), sc.clone(), cfg.clone());
@@ -26,7 +34,7 @@ fn networked(sc: &Scenario, cfg: &LidarPeopleConfig) -> quarry_net::ServerRun {
         })
         .collect();
     let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
-    let run = run_sim_server(&bus, &sensors(sc), cfg, t_end, Duration::from_secs(30)).unwrap();
+    let run = run_sim_server(bus, &sensors(sc), cfg, t_end, Duration::from_secs(30)).unwrap();
     for n in nodes {
         n.join().unwrap().unwrap();
     }
@@ -165,4 +173,91 @@ fn wall_clock_nodes_sync_and_the_server_fuses_every_scan() {
         let l = l.unwrap_or_else(|| panic!("sensor {id} never heard"));
         assert!(l > -5_000, "sensor {id}: {l} µs");
     }
+}
+
+/// Runs `f` on a thread and fails (instead of hanging the test run) when it takes longer than
+/// `limit`.
+fn within<R: Send + 'static>(limit: Duration, f: impl FnOnce() -> R + Send + 'static) -> R {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(r) => r,
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+            panic!("still running after {} s: deadlock?", limit.as_secs())
+        }
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => panic!("the run panicked"),
+    }
+}
+
+#[test]
+fn a_bounded_transport_like_zenoh_does_not_deadlock_the_server() {
+    // zenoh's subscriber queue holds 256 samples and blocks the publisher when full; with 8 the
+    // nodes fill the server's queue at once. A server subscription that also matched the
+    // server's own track messages (the old `quarry/lidar/**`) deadlocked here: the server's
+    // thread blocked publishing into its own full queue.
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = Scenario::band(SpeedBand::Mid, 2, 5).with_duration(4.0);
+    let local = run_room_default(sc.clone(), &cfg, &mut |_| {}).unwrap();
+    let (sc2, cfg2) = (sc.clone(), cfg.clone());
+    let net = within(Duration::from_mins(2), move || {
+        networked_over(&LocalBus::bounded(8), &sc2, &cfg2)
+    });
+    assert_eq!(net.frames_tracked, local.frames_tracked);
+    assert_eq!(net.tracks, local.tracks);
+}
+
+/// A transport that loses the first `drop_acks` end acknowledgements to every node (as a
+/// pub/sub engine does while the node's subscription has not reached the server yet).
+#[derive(Clone)]
+struct LosesAcks {
+    bus: LocalBus,
+    drop_acks: usize,
+    dropped: Arc<Mutex<Vec<String>>>,
+}
+
+impl Transport for LosesAcks {
+    fn publish(&self, key: &str, payload: &[u8]) -> Result<(), NetError> {
+        if key.starts_with("quarry/lidar/endack/") {
+            let mut d = self.dropped.lock().unwrap();
+            if d.iter().filter(|k| *k == key).count() < self.drop_acks {
+                d.push(key.to_string());
+                return Ok(());
+            }
+        }
+        self.bus.publish(key, payload)
+    }
+    fn subscribe(&self, pattern: &str) -> Result<Box<dyn Subscription>, NetError> {
+        self.bus.subscribe(pattern)
+    }
+}
+
+#[test]
+fn lost_end_acknowledgements_are_resent_until_every_node_confirms() {
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = Scenario::band(SpeedBand::Mid, 1, 6).with_duration(2.0);
+    let local = run_room_default(sc.clone(), &cfg, &mut |_| {}).unwrap();
+    let t = LosesAcks {
+        bus: LocalBus::new(),
+        drop_acks: 2,
+        dropped: Arc::default(),
+    };
+    // a spy on the nodes' confirmations
+    let mut byes = t.subscribe("quarry/lidar/node/bye/*").unwrap();
+    let (t2, sc2, cfg2) = (t.clone(), sc.clone(), cfg.clone());
+    let net = within(Duration::from_mins(1), move || {
+        networked_over(&t2, &sc2, &cfg2)
+    });
+    assert_eq!(net.tracks, local.tracks);
+    // every node lost two acknowledgements, re-sent its end marker and got the third
+    assert_eq!(t.dropped.lock().unwrap().len(), 2 * sc.scanners.len());
+    let mut seen: Vec<Received> = Vec::new();
+    while let Some(r) = byes.recv_timeout(Duration::from_millis(10)).unwrap() {
+        seen.push(r);
+    }
+    let mut ids: Vec<&str> = seen.iter().map(|r| r.key.as_str()).collect();
+    ids.sort_unstable();
+    let want: Vec<String> = sc.scanners.iter().map(|s| keys::bye(s.id)).collect();
+    assert_eq!(ids, want);
 }

@@ -53,3 +53,155 @@ fn single_walker_is_tracked() {
     assert!(m.loc.p95 < 0.12, "p95 {}", m.loc.p95);
     assert!(m.success_rate() > 0.9, "success {}", m.success_rate());
 }
+
+/// False tracks of an empty room over the evaluation window (after the 7 s warm-up): rows per
+/// frame, and the longest life of a track id, seconds (frames it appears in × 50 ms).
+fn empty_room(seed: u64, seconds: f64) -> (f64, f64, usize) {
+    let cfg = LidarPeopleConfig::preset(Preset::Faithful);
+    let sc = Scenario::empty(seed).with_duration(7.0 + seconds);
+    let run = run_room_default(sc, &cfg, &mut |_| {}).unwrap();
+    let frames = (seconds / cfg.frame_period_s).round() as usize - 2;
+    let w = run.eval_window(TimeUs(7_000_000), frames);
+    assert_eq!(w.len(), frames);
+    let rows: usize = w.iter().map(|f| f.tracks.len()).sum();
+    let mut life: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
+    for f in &w {
+        assert!(f.gt.is_empty());
+        for (id, _) in &f.tracks {
+            *life.entry(*id).or_default() += 1;
+        }
+    }
+    let longest = life.values().copied().max().unwrap_or(0) as f64 * cfg.frame_period_s;
+    let per_frame = rows as f64 / frames as f64;
+    eprintln!(
+        "empty seed {seed}: {frames} frames, {rows} false rows ({per_frame:.4} per frame), {} ids, longest {longest:.2} s",
+        life.len()
+    );
+    (per_frame, longest, life.len())
+}
+
+#[test]
+fn empty_room_with_coat_stand_has_almost_no_false_tracks() {
+    // spec §8: <= 0.01 false tracks per frame, none living > 1 s (short CI version: 20 s)
+    let (per_frame, longest, _) = empty_room(1, 20.0);
+    assert!(per_frame <= 0.01, "{per_frame} false tracks per frame");
+    assert!(longest <= 1.0, "a false track lived {longest} s");
+}
+
+#[test]
+#[ignore = "long: the full 60 s empty scenario, seeds 1-5 (run in release)"]
+fn empty_room_full_seeds_1_to_5() {
+    for seed in 1..=5 {
+        let (per_frame, longest, _) = empty_room(seed, 53.0);
+        assert!(per_frame <= 0.01, "seed {seed}: {per_frame} per frame");
+        assert!(longest <= 1.0, "seed {seed}: {longest} s");
+    }
+}
+
+/// The crossing scenario (two people crossing at right angles at 1 m/s, closest approach
+/// about 0.6 m at t = 9.3 s), evaluated over 7-12 s: the first crossing. On their second
+/// encounter (t = 12.3 s) the simulator's collision avoidance freezes both walkers face to
+/// face for the rest of the run (quarry-sim, see docs/lidar-people.md "Scenario tests"); two
+/// people standing still for 18 s are not the crossing the spec asks about.
+fn crossing(seed: u64, preset: Preset) -> Paper003Metrics {
+    run(Scenario::crossing(seed), preset, 100)
+}
+
+#[test]
+fn crossing_is_tracked_by_faithful() {
+    // spec §8: paper success >= 90 % (CI: seed 1; the 10 seeds and the kf-gnn identity
+    // criterion are `crossing_ten_seeds`, whose kf-gnn part fails, see docs/lidar-people.md)
+    let f = crossing(1, Preset::Faithful);
+    assert!(f.success_rate() >= 0.9, "success {}", f.success_rate());
+    assert_eq!(f.idsw, 0);
+}
+
+#[test]
+#[ignore = "long, and fails: kf-gnn switches identities in every seed (docs/lidar-people.md)"]
+fn crossing_ten_seeds() {
+    let mut low = Vec::new();
+    let mut clean = 0;
+    for seed in 1..=10 {
+        let f = crossing(seed, Preset::Faithful);
+        if f.success_rate() < 0.9 {
+            low.push((seed, f.success_rate()));
+        }
+        clean += usize::from(crossing(seed, Preset::KfGnn).idsw == 0);
+    }
+    assert!(low.is_empty(), "faithful success below 0.9: {low:?}");
+    assert!(
+        clean >= 8,
+        "kf-gnn without identity switch in {clean} of 10 seeds"
+    );
+}
+
+#[test]
+fn region_constraint_shortcut_equals_the_kd_tree_reference_on_a_room_stream() {
+    // the background step's region constraint (6) (`region_constraint_scan`, which decides
+    // windows without non-candidates without distance checks) against the kd-tree version, on
+    // every scan of scanner A in a 20-person room, 7 s warm-up then 5 s
+    use quarry_cloud::background::{region_constraint, region_constraint_scan};
+    use quarry_core::Point2;
+    use quarry_sim::lidar_room::{RoomEvent, Runner};
+    let cfg = LidarPeopleConfig::faithful();
+    let sc = Scenario::band(SpeedBand::Mid, 20, 7).with_duration(12.0);
+    let g = sc.scanners[0].geometry;
+    let mut bg = quarry_trackers::lidar_people::background_of(&cfg, &g).unwrap();
+    let mut runner = Runner::new(sc).unwrap();
+    let (mut scans, mut dynamic) = (0, 0);
+    while let Some(ev) = runner.next_event().unwrap() {
+        let RoomEvent::Scan(cs) = ev else { continue };
+        if cs.scanner != 0 {
+            continue;
+        }
+        bg.classify_scan(&cs.scan).unwrap();
+        let cand = bg.diagnostics().candidate.clone();
+        let pts: Vec<Option<Point2>> = (0..g.n_beams as usize)
+            .map(|n| {
+                cs.scan.range_m(n).map(|r| {
+                    let a = g.angle_min + g.angle_increment * n as f64;
+                    Point2::new(r * a.cos(), r * a.sin())
+                })
+            })
+            .collect();
+        let a = region_constraint(&pts, &cand, cfg.delta_region).unwrap();
+        let b = region_constraint_scan(&pts, &cand, cfg.delta_region, g.angle_increment).unwrap();
+        assert_eq!(a, b, "scan {scans}");
+        scans += 1;
+        dynamic += b
+            .iter()
+            .zip(&pts)
+            .filter(|(s, p)| !**s && p.is_some())
+            .count();
+    }
+    assert!(scans > 400, "{scans} scans");
+    assert!(
+        dynamic > 1000,
+        "too few dynamic points to test the vote: {dynamic}"
+    );
+}
+
+#[test]
+fn band_mid_network_and_clock_variants() {
+    // spec §8 (short CI version, 400 frames; the 2400-frame table is in docs/lidar-people.md):
+    // success drops <= 3 points with wifi and <= 10 with bad vs ideal, <= 3 with skewed vs
+    // synced clocks; skewed_nosync is the negative control (reported only)
+    use quarry_sim::lidar_room::{ClockProfile, NetworkModel};
+    let sc = || Scenario::band(SpeedBand::Mid, 3, 2).with_duration(27.0);
+    let s = |sc: Scenario| 100.0 * run(sc, Preset::Faithful, 400).success_rate();
+    let ideal = s(sc().with_network(NetworkModel::ideal()));
+    let wifi = s(sc().with_network(NetworkModel::wifi()));
+    let bad = s(sc().with_network(NetworkModel::bad()));
+    let skewed = s(sc().with_clock(ClockProfile::Skewed));
+    let nosync = s(sc().with_clock(ClockProfile::SkewedNoSync));
+    eprintln!(
+        "success %: ideal {ideal:.2}, wifi {wifi:.2}, bad {bad:.2}, wifi+skewed {skewed:.2}, wifi+skewed_nosync {nosync:.2}"
+    );
+    assert!(ideal - wifi <= 3.0, "wifi drops {:.2} points", ideal - wifi);
+    assert!(ideal - bad <= 10.0, "bad drops {:.2} points", ideal - bad);
+    assert!(
+        wifi - skewed <= 3.0,
+        "skewed drops {:.2} points",
+        wifi - skewed
+    );
+}
