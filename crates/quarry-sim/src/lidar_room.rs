@@ -594,19 +594,21 @@ impl Walker {
         let v = self.v_leg;
         let (s, c) = self.state.heading.sin_cos();
         let next = Point2::new(self.state.pos.x + v * dt * c, self.state.pos.y + v * dt * s);
-        // a body may go where its centre keeps 0.35 m from the walls and 0.3 m from obstacles
-        let [x0, x1, y0, y1] = room.walkable;
-        let m = room.inflate - 0.35;
-        let inside = next.x >= x0 - m && next.x <= x1 + m && next.y >= y0 - m && next.y <= y1 + m;
-        let free = inside
-            && (room.obstacle_distance(next) >= 0.3
-                || room.obstacle_distance(next) >= room.obstacle_distance(self.state.pos));
-        let clear = others
-            .iter()
-            .all(|o| (o - next).norm() >= 0.6 || (o - next).norm() > (o - self.state.pos).norm());
+        let (free, clear) = step_allowed(room, others, self.state.pos, next);
         if free && clear {
             self.state.pos = next;
             self.state.speed = v;
+            self.blocked_s = 0.0;
+        } else if free
+            && matches!(self.spec.motion, Motion::Route(_))
+            && let Some(side) = self.sidestep(room, others, v, dt)
+        {
+            // A scripted walker blocked by another person yields to its right at half speed
+            // instead of standing still: two walkers meeting head-on on their routes would
+            // otherwise wait for each other for ever (the first `crossing` version froze both
+            // at their second meeting, t ≈ 12.3 s, for the rest of the run).
+            self.state.pos = side;
+            self.state.speed = 0.5 * v;
             self.blocked_s = 0.0;
         } else {
             // stop and turn in place toward the goal (a body cannot walk into a wall)
@@ -628,6 +630,16 @@ impl Walker {
         }
     }
 
+    /// A half-speed step to the walker's right (heading − 90°), if the body stays clear of the
+    /// walls, the obstacles and the other people (the same rules as a forward step).
+    fn sidestep(&self, room: &Room, others: &[Point2], v: f64, dt: f64) -> Option<Point2> {
+        let (s, c) = (self.state.heading - PI / 2.0).sin_cos();
+        let pos = self.state.pos;
+        let next = Point2::new(pos.x + 0.5 * v * dt * c, pos.y + 0.5 * v * dt * s);
+        let (free, clear) = step_allowed(room, others, pos, next);
+        (free && clear).then_some(next)
+    }
+
     fn at(&self, s: f64) -> PersonState {
         let mut p = self.state;
         p.pos = self.prev.pos + (self.state.pos - self.prev.pos) * s;
@@ -636,6 +648,22 @@ impl Walker {
         p.t = self.prev.t + (self.state.t - self.prev.t) * s;
         p
     }
+}
+
+/// Whether a body may move its centre from `from` to `next`: `free` (the centre keeps 0.35 m from
+/// the walls and 0.3 m from obstacles, or does not get closer to an obstacle) and `clear` (it
+/// keeps 0.6 m from every other person, or does not get closer to them).
+fn step_allowed(room: &Room, others: &[Point2], from: Point2, next: Point2) -> (bool, bool) {
+    let [x0, x1, y0, y1] = room.walkable;
+    let m = room.inflate - 0.35;
+    let inside = next.x >= x0 - m && next.x <= x1 + m && next.y >= y0 - m && next.y <= y1 + m;
+    let free = inside
+        && (room.obstacle_distance(next) >= 0.3
+            || room.obstacle_distance(next) >= room.obstacle_distance(from));
+    let clear = others
+        .iter()
+        .all(|o| (o - next).norm() >= 0.6 || (o - next).norm() > (o - from).norm());
+    (free, clear)
 }
 
 // ---------------------------------------------------------------------------------------------
