@@ -829,6 +829,18 @@ impl PatchMultiCueModel {
         }
     }
 
+    /// The cue score (eq. 7) of a candidate identical to the template over `n_scored` patches:
+    /// `n_scored · φ(1)` (`φ(1)` for the mean-square aggregate, which is normalised). Used for
+    /// the spec §8 guard on the texture-only tier.
+    #[must_use]
+    #[allow(clippy::cast_precision_loss)]
+    pub fn cue_self_score(&self, n_scored: usize) -> f32 {
+        match self.cfg.aggregate {
+            Aggregate::CotSquared => self.phi(1.0) * n_scored as f32,
+            Aggregate::MeanSquare => self.phi(1.0),
+        }
+    }
+
     /// Scores a descriptor over the valid patches `V` (eqs. 6-8, pass fractions).
     #[must_use]
     pub fn score_descriptor(&self, d: &PatchDescriptor) -> CandidateScore {
