@@ -747,11 +747,12 @@ impl PatchMultiCueModel {
         // The paper's kernel (flat depth band, no image-plane kernel): every weight is 1, so the
         // histograms are integer counts (exact in f32 below 2^24, hence identical to the
         // general path) and a pixel needs one band test.
-        let flat = cfg.depth_kernel
-            && !cfg.spatial_kernel
-            && cfg.depth_profile == DepthProfile::Flat;
-        let mut cnt_c = vec![0u32; nc];
-        let mut cnt_t = vec![0u32; nt];
+        let flat =
+            cfg.depth_kernel && !cfg.spatial_kernel && cfg.depth_profile == DepthProfile::Flat;
+        // indexed by the u8 codes directly (no bounds test); codes ≥ nc / nt are dropped below
+        let mut cnt_c = [0u32; 256];
+        let mut cnt_t = [0u32; 256];
+        let edges = z_star.map(|zs| band_edges(zs, cfg.tau_z));
         let (mut box_occ, mut box_depth) = (0usize, 0usize);
         let tau = cfg.tau_z;
         let s = cfg.stride as usize;
@@ -777,7 +778,7 @@ impl PatchMultiCueModel {
                 for y in (y0..y1).step_by(s) {
                     let ry = y - f.roi.1;
                     let zr = &f.depth_m.row(ry)[lo..hi];
-                    let Some(zs) = z_star else {
+                    let Some((z_lo, z_hi)) = edges else {
                         with_depth += zr.iter().step_by(s).filter(|&&z| z > 0.0).count();
                         continue;
                     };
@@ -790,17 +791,12 @@ impl PatchMultiCueModel {
                         x += s;
                         if z > 0.0 {
                             with_depth += 1;
-                            let d = (z - zs) / tau;
-                            if d < -1.0 {
+                            if z < z_lo {
                                 occ += 1;
-                            } else if d <= 1.0 {
+                            } else if z <= z_hi {
                                 fg += 1;
-                                if let Some(x) = cnt_c.get_mut(usize::from(c)) {
-                                    *x += 1;
-                                }
-                                if let Some(x) = cnt_t.get_mut(usize::from(t)) {
-                                    *x += 1;
-                                }
+                                cnt_c[usize::from(c)] += 1;
+                                cnt_t[usize::from(t)] += 1;
                             }
                         }
                     }
@@ -1028,6 +1024,35 @@ impl PatchMultiCueModel {
     }
 }
 
+/// The exact f32 edges of the depth band: for every f32 `z`, `(z − zs)/τ < −1` ⟺ `z < lo` and
+/// `(z − zs)/τ ≤ 1` ⟺ `z ≤ hi` (both sides are monotone in `z` under rounding, so the edges are
+/// found by stepping ulps from `zs ∓ τ`). The band test then needs no subtraction or division
+/// per pixel and classifies every pixel exactly as the formula does.
+fn band_edges(zs: f32, tau: f32) -> (f32, f32) {
+    let d = |z: f32| (z - zs) / tau;
+    let mut lo = zs - tau;
+    for _ in 0..64 {
+        if d(lo) < -1.0 {
+            lo = lo.next_up();
+        } else if d(lo.next_down()) >= -1.0 {
+            lo = lo.next_down();
+        } else {
+            break;
+        }
+    }
+    let mut hi = zs + tau;
+    for _ in 0..64 {
+        if d(hi) > 1.0 {
+            hi = hi.next_down();
+        } else if d(hi.next_up()) <= 1.0 {
+            hi = hi.next_up();
+        } else {
+            break;
+        }
+    }
+    (lo, hi)
+}
+
 fn finish(acc: &[f32], m_min: f64) -> Result<Option<Histogram>, VisionError> {
     let sum: f64 = acc.iter().map(|&x| f64::from(x)).sum();
     if sum < m_min || sum <= 0.0 {
@@ -1229,6 +1254,26 @@ mod tests {
                 }
             }
             prop_assert_eq!(seen, changed);
+        }
+
+        /// The precomputed band edges classify every depth exactly as `(z − Z*)/τ` does.
+        #[test]
+        fn band_edges_are_exact(zs in 0.05f32..8.0, tau in 0.01f32..1.0, t in -2.0f32..2.0, k in -3i32..=3) {
+            let (lo, hi) = band_edges(zs, tau);
+            // around both edges, a few ulps either side, and a random depth
+            let mut zs_to_test = vec![zs + t * tau];
+            for e in [lo, hi] {
+                let mut z = e;
+                for _ in 0..k.unsigned_abs() {
+                    z = if k < 0 { z.next_down() } else { z.next_up() };
+                }
+                zs_to_test.extend([z, z.next_up(), z.next_down()]);
+            }
+            for z in zs_to_test {
+                let d = (z - zs) / tau;
+                prop_assert_eq!(z < lo, d < -1.0, "z {} lo {}", z, lo);
+                prop_assert_eq!(z <= hi, d <= 1.0, "z {} hi {}", z, hi);
+            }
         }
 
         /// Scores are non-negative, fractions in [0, 1], deterministic.
