@@ -1038,8 +1038,8 @@ pub fn run_scenario_multi(
         .ok_or_else(|| TrackerError::Config("target not in view at frame 0".into()))?;
     let w = scene.intrinsics.width;
     let h = scene.intrinsics.height;
-    let frame0 = RgbdFrame::new(w, h, f0.rgb, f0.depth_m, quarry_core::EgoMotion::None)
-        .map_err(vis_err)?;
+    let frame0 =
+        RgbdFrame::new(w, h, f0.rgb, f0.depth_m, quarry_core::EgoMotion::None).map_err(vis_err)?;
     for tr in &mut trackers {
         tr.init(Stamp::from_frame(0, scene.dt), &frame0, init)?;
     }

@@ -499,7 +499,8 @@ mod tests {
             let rgb = RgbImage::from_fn(w, h, |x, y| {
                 if person(x, y) {
                     // three vertical colour bands, darker every other 6 rows
-                    let c = [[40u8, 90, 200], [220, 180, 60], [200, 40, 60]][((x - x0) / 8) as usize];
+                    let c =
+                        [[40u8, 90, 200], [220, 180, 60], [200, 40, 60]][((x - x0) / 8) as usize];
                     let d = if (y / 6) % 2 == 0 { 1 } else { 2 };
                     Rgb(c.map(|v| v / d))
                 } else {
@@ -561,18 +562,32 @@ mod tests {
         // candidate grid stride is 3 px)
         for (k, l) in lines.iter().enumerate().skip(1) {
             let cx = l[2] + l[4] / 2.0;
-            assert!((cx - (48.0 + 2.0 * k as f64)).abs() <= 3.0, "frame {}: {boxes}", k + 1);
+            assert!(
+                (cx - (48.0 + 2.0 * k as f64)).abs() <= 3.0,
+                "frame {}: {boxes}",
+                k + 1
+            );
             assert!((l[6] - 1.0).abs() < 1e-12, "{boxes}");
         }
         // errors, never panics: no init, a missing depth frame
         let bad = root.join("noinit");
         write_ptb(&bad, 2, false);
-        let e = run_sequence(&args(&bad, None), &bad, &config(&a).unwrap(), &Output { json: true })
-            .unwrap_err();
+        let e = run_sequence(
+            &args(&bad, None),
+            &bad,
+            &config(&a).unwrap(),
+            &Output { json: true },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("init.txt"), "{e}");
         std::fs::remove_file(seq.join("depth/d-1043-2.png")).unwrap();
-        let e = run_sequence(&args(&seq, None), &seq, &config(&a).unwrap(), &Output { json: true })
-            .unwrap_err();
+        let e = run_sequence(
+            &args(&seq, None),
+            &seq,
+            &config(&a).unwrap(),
+            &Output { json: true },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("frame 2"), "{e}");
         let _ = std::fs::remove_dir_all(&root);
     }
