@@ -125,6 +125,16 @@ pub struct RgbdPersonConfig {
     pub update_fraction: Option<f32>,
     /// Gate learning on the occlusion state (false = `no_occlusion_gate` ablation).
     pub occlusion_gate: bool,
+    /// Learn only when every valid patch of `c*` is unoccluded (`U(c*) = V`: no valid patch
+    /// depth-occluded, out of view or empty), on top of the state gate. A box that slid beside a
+    /// partly covered target has empty patches but no occluder pixels, so `D(c*)` alone lets it
+    /// learn (S1 seeds 1-2). `false` = the spec's literal state-only gate.
+    pub learn_unoccluded_only: bool,
+    /// Tier T2b (texture only, also inside T3) also needs `S_Ld ≥` this fraction of the
+    /// template's texture self-score over the scored patches (spec §8; `None` = off). Flat,
+    /// noisy surfaces (floor, panel) have riu2 histograms close to a plain shirt's, so without
+    /// it T2b accepts the floor during a full occlusion and drags the MEKF off (S1 seed 2).
+    pub t2b_self_score_fraction: Option<f32>,
     /// Use odometry in the MEKF (false = `no_ego` ablation).
     pub ego: bool,
     /// Use the paper's literal eq. (11) (ablation).
@@ -178,6 +188,8 @@ impl RgbdPersonConfig {
             lost_after: 90,
             update_fraction: None,
             occlusion_gate: true,
+            learn_unoccluded_only: true,
+            t2b_self_score_fraction: Some(0.5),
             ego: true,
             paper_literal_11: false,
             baseline: false,
@@ -253,6 +265,11 @@ impl RgbdPersonConfig {
         for (n, x) in [
             ("accept_fraction", self.accept_fraction),
             ("severe_fraction", self.severe_fraction),
+            ("update_fraction", self.update_fraction.unwrap_or(0.0)),
+            (
+                "t2b_self_score_fraction",
+                self.t2b_self_score_fraction.unwrap_or(0.0),
+            ),
         ] {
             if !(0.0..=1.0).contains(&x) {
                 return Err(RgbdError::Config(format!(
@@ -642,6 +659,7 @@ impl RgbdPersonTracker {
             described.push((d, s));
         }
         let k_min = model.k_min();
+        let n_valid = model.valid().iter().filter(|&&v| v).count();
         let a = cfg.accept_fraction;
         let dist = |b: &BBox| pred.map_or(0.0, |(u, v)| (b.cx - u).hypot(b.cy - v));
         // argmax with ties: score, then distance to the MEKF candidate, then index
@@ -659,16 +677,22 @@ impl RgbdPersonTracker {
             }
             best.map(|b| b.0)
         };
-        let tiers = |sc: &dyn Fn(usize) -> Option<CandidateScore>,
+        let t2b_min = |n_scored: usize| {
+            cfg.t2b_self_score_fraction
+                .map_or(f32::NEG_INFINITY, |f| f * model.cue_self_score(n_scored))
+        };
+        let tiers = |sc: &dyn Fn(usize) -> Option<(CandidateScore, usize)>,
                      pool: &[usize],
                      need: usize|
          -> Option<(usize, DetectionTier, CandidateScore)> {
-            let scored: Vec<(usize, CandidateScore)> =
-                pool.iter().filter_map(|&i| sc(i).map(|s| (i, s))).collect();
+            let scored: Vec<(usize, CandidateScore, usize)> = pool
+                .iter()
+                .filter_map(|&i| sc(i).map(|(s, n)| (i, s, n)))
+                .collect();
             let t1: Vec<(usize, f32)> = scored
                 .iter()
-                .filter(|(_, s)| s.m >= a && s.n_pass >= need)
-                .map(|(i, s)| (*i, s.s))
+                .filter(|(_, s, _)| s.m >= a && s.n_pass >= need)
+                .map(|(i, s, _)| (*i, s.s))
                 .collect();
             if let Some(i) = pick(&t1) {
                 let s = scored.iter().find(|x| x.0 == i).map(|x| x.1.clone())?;
@@ -676,8 +700,8 @@ impl RgbdPersonTracker {
             }
             let t2a: Vec<(usize, f32)> = scored
                 .iter()
-                .filter(|(_, s)| s.m_cd >= a && s.n_pass_cd >= need)
-                .map(|(i, s)| (*i, s.s_cd))
+                .filter(|(_, s, _)| s.m_cd >= a && s.n_pass_cd >= need)
+                .map(|(i, s, _)| (*i, s.s_cd))
                 .collect();
             if let Some(i) = pick(&t2a) {
                 let s = scored.iter().find(|x| x.0 == i).map(|x| x.1.clone())?;
@@ -685,8 +709,8 @@ impl RgbdPersonTracker {
             }
             let t2b: Vec<(usize, f32)> = scored
                 .iter()
-                .filter(|(_, s)| s.m_ld >= a && s.n_pass_ld >= need)
-                .map(|(i, s)| (*i, s.s_ld))
+                .filter(|(_, s, n)| s.m_ld >= a && s.n_pass_ld >= need && s.s_ld >= t2b_min(*n))
+                .map(|(i, s, _)| (*i, s.s_ld))
                 .collect();
             pick(&t2b).and_then(|i| {
                 let s = scored.iter().find(|x| x.0 == i).map(|x| x.1.clone())?;
@@ -704,7 +728,9 @@ impl RgbdPersonTracker {
                     .collect();
                 selection = pick(&items)
                     .map(|i| (i, DetectionTier::Overall, described[i].1.clone(), false));
-            } else if let Some((i, t, s)) = tiers(&|i| Some(described[i].1.clone()), &all, 0) {
+            } else if let Some((i, t, s)) =
+                tiers(&|i| Some((described[i].1.clone(), n_valid)), &all, 0)
+            {
                 selection = Some((i, t, s, false));
             } else {
                 let t3_pool: Vec<usize> = all
@@ -718,7 +744,8 @@ impl RgbdPersonTracker {
                     .collect();
                 let sub = |i: usize| {
                     let (d, s) = &described[i];
-                    Some(model.score_over(d, &s.unoccluded))
+                    let n = s.unoccluded.iter().filter(|&&u| u).count();
+                    Some((model.score_over(d, &s.unoccluded), n))
                 };
                 if let Some((i, t, s)) = tiers(&sub, &t3_pool, k_min) {
                     selection = Some((i, DetectionTier::Unoccluded(Box::new(t)), s, true));
@@ -768,10 +795,17 @@ impl RgbdPersonTracker {
             if let Some(z) = meas_of(i) {
                 ekf.update(&z)?;
             }
-            let learnable = matches!(
+            let all_seen = !cfg.learn_unoccluded_only
+                || model
+                    .valid()
+                    .iter()
+                    .zip(&s_full.unoccluded)
+                    .all(|(&v, &u)| !v || u);
+            let learnable = (matches!(
                 out_state,
                 OcclusionState::Normal | OcclusionState::AppearanceChange
-            ) || !cfg.occlusion_gate;
+            ) && all_seen)
+                || !cfg.occlusion_gate;
             let frac_ok = cfg.update_fraction.is_none_or(|u| s_full.m >= u);
             if learnable && frac_ok {
                 n_updated = model.learn_counted(d, s_full);
@@ -957,7 +991,6 @@ pub fn run_scenario(
 ///
 /// # Errors
 /// A simulator or tracker error.
-#[allow(clippy::cast_precision_loss, clippy::too_many_lines)]
 pub fn run_scenario_frames(
     scene: &quarry_sim::rgbd::RgbdScene,
     seed: u64,
@@ -966,9 +999,38 @@ pub fn run_scenario_frames(
     n_frames: usize,
     mut on_frame: impl FnMut(&quarry_sim::rgbd::RgbdSample, &TrackOutput),
 ) -> Result<(ScenarioSummary, Vec<FrameRecord>), TrackerError> {
+    let mut runs = run_scenario_multi(
+        scene,
+        seed,
+        &[(cfg.clone(), odometry)],
+        n_frames,
+        |_, smp, o| on_frame(smp, o),
+    )?;
+    runs.pop()
+        .ok_or_else(|| TrackerError::Config("no run".into()))
+}
+
+/// Runs several trackers (configuration and odometry feed each) on the same scenario, rendering
+/// each frame once: the result of each run is exactly that of [`run_scenario_frames`] with its
+/// configuration (the trackers share nothing but the rendered frames). `on_frame` receives the
+/// run's index.
+///
+/// # Errors
+/// A simulator or tracker error.
+#[allow(clippy::cast_precision_loss, clippy::too_many_lines)]
+pub fn run_scenario_multi(
+    scene: &quarry_sim::rgbd::RgbdScene,
+    seed: u64,
+    runs: &[(RgbdPersonConfig, OdometryFeed)],
+    n_frames: usize,
+    mut on_frame: impl FnMut(usize, &quarry_sim::rgbd::RgbdSample, &TrackOutput),
+) -> Result<Vec<(ScenarioSummary, Vec<FrameRecord>)>, TrackerError> {
     let sim = |e: quarry_sim::SimError| TrackerError::Config(e.to_string());
     let vis_err = |e: VisionError| TrackerError::from(RgbdError::from(e));
-    let mut tr = RgbdPersonTracker::new(cfg.clone())?;
+    let mut trackers = runs
+        .iter()
+        .map(|(c, _)| RgbdPersonTracker::new(c.clone()))
+        .collect::<Result<Vec<_>, _>>()?;
     let f0 = scene.render(0).map_err(sim)?;
     let init = f0
         .truth
@@ -976,65 +1038,70 @@ pub fn run_scenario_frames(
         .ok_or_else(|| TrackerError::Config("target not in view at frame 0".into()))?;
     let w = scene.intrinsics.width;
     let h = scene.intrinsics.height;
-    let frame0 = RgbdFrame::new(
-        w,
-        h,
-        f0.rgb.clone(),
-        f0.depth_m.clone(),
-        quarry_core::EgoMotion::None,
-    )
-    .map_err(vis_err)?;
-    tr.init(Stamp::from_frame(0, scene.dt), &frame0, init)?;
-    let mut recs = Vec::with_capacity(scene.len());
+    let frame0 =
+        RgbdFrame::new(w, h, f0.rgb, f0.depth_m, quarry_core::EgoMotion::None).map_err(vis_err)?;
+    for tr in &mut trackers {
+        tr.init(Stamp::from_frame(0, scene.dt), &frame0, init)?;
+    }
+    drop(frame0);
+    let mut recs: Vec<Vec<FrameRecord>> = runs
+        .iter()
+        .map(|_| Vec::with_capacity(scene.len()))
+        .collect();
     for k in 1..n_frames.min(scene.len()) {
         let smp = scene.render(k).map_err(sim)?;
         let t = &smp.truth;
-        let d = match odometry {
-            OdometryFeed::Exact => t.delta,
-            OdometryFeed::Noisy => t.delta_noisy,
-        };
-        let fr = RgbdFrame::new(
+        let mut fr = RgbdFrame::new(
             w,
             h,
             smp.rgb.clone(),
             smp.depth_m.clone(),
-            quarry_core::EgoMotion::Delta(d),
+            quarry_core::EgoMotion::None,
         )
         .map_err(vis_err)?;
-        tr.force_no_detection(t.detector_off);
-        let t0 = std::time::Instant::now();
-        let o = tr.step(Stamp::from_frame(k as u64, scene.dt), &fr)?;
-        let ms = t0.elapsed().as_secs_f64() * 1e3;
-        on_frame(&smp, &o);
-        let iou = match (o.bbox, t.amodal) {
-            (Some(b), Some(g)) => b.iou(&g),
-            _ => 0.0,
-        };
-        let centre_err = match (o.bbox, t.amodal) {
-            (Some(b), Some(g)) => Some((b.cx - g.cx).hypot(b.cy - g.cy)),
-            _ => None,
-        };
-        let gt = t.target_robot;
-        let pos_err_m = (o.mean[0] - gt[0]).hypot(o.mean[1] - gt[1]);
-        recs.push(FrameRecord {
-            frame: k,
-            bbox: o.bbox,
-            confirmed: o.confirmed,
-            state: o.state,
-            gt: t.amodal,
-            visibility: t.visibility,
-            iou,
-            centre_err,
-            n_updated: o.n_updated_patches,
-            pos_err_m,
-            iou_distractor: match (o.bbox, t.distractor) {
+        for (r, ((_, odometry), tr)) in runs.iter().zip(trackers.iter_mut()).enumerate() {
+            fr.ego = quarry_core::EgoMotion::Delta(match odometry {
+                OdometryFeed::Exact => t.delta,
+                OdometryFeed::Noisy => t.delta_noisy,
+            });
+            tr.force_no_detection(t.detector_off);
+            let t0 = std::time::Instant::now();
+            let o = tr.step(Stamp::from_frame(k as u64, scene.dt), &fr)?;
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            on_frame(r, &smp, &o);
+            let iou = match (o.bbox, t.amodal) {
                 (Some(b), Some(g)) => b.iou(&g),
                 _ => 0.0,
-            },
-            ms,
-        });
+            };
+            let centre_err = match (o.bbox, t.amodal) {
+                (Some(b), Some(g)) => Some((b.cx - g.cx).hypot(b.cy - g.cy)),
+                _ => None,
+            };
+            let gt = t.target_robot;
+            let pos_err_m = (o.mean[0] - gt[0]).hypot(o.mean[1] - gt[1]);
+            recs[r].push(FrameRecord {
+                frame: k,
+                bbox: o.bbox,
+                confirmed: o.confirmed,
+                state: o.state,
+                gt: t.amodal,
+                visibility: t.visibility,
+                iou,
+                centre_err,
+                n_updated: o.n_updated_patches,
+                pos_err_m,
+                iou_distractor: match (o.bbox, t.distractor) {
+                    (Some(b), Some(g)) => b.iou(&g),
+                    _ => 0.0,
+                },
+                ms,
+            });
+        }
     }
-    Ok((summarise(scene.id().name(), seed, &recs), recs))
+    Ok(recs
+        .into_iter()
+        .map(|r| (summarise(scene.id().name(), seed, &r), r))
+        .collect())
 }
 
 /// The §5.4 measures of a run.

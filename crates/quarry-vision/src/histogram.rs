@@ -265,6 +265,15 @@ impl DepthHistogram {
         }
     }
 
+    /// Counts a depth sample into a bin the caller already computed (`bin = bin_of(z)`, e.g.
+    /// from a per-frame bin map), without re-validating it; a bin out of range is ignored.
+    pub fn add_to_bin(&mut self, bin: usize, z: f32) {
+        if let (Some(c), Some(s)) = (self.counts.get_mut(bin), self.sums.get_mut(bin)) {
+            *c += 1;
+            *s += f64::from(z);
+        }
+    }
+
     /// Histogram of the depth pixels in the rectangle `(x0, y0, x1, y1)` (exclusive ends, as
     /// `BBox::to_pixel_rect` returns).
     ///

@@ -313,9 +313,17 @@ pub struct RgbdFeatures {
     pub lbp_class: Plane<u8>,
     /// Depth per ROI pixel, metres; 0 = no depth.
     pub depth_m: Plane<f32>,
+    /// Depth-histogram bin per ROI pixel (eq. 1) for `depth_bins = (Δ_d, B_d)`;
+    /// [`RgbdFeatures::NO_DEPTH_BIN`] = not counted (no depth, or beyond the last bin).
+    pub depth_bin: Plane<u16>,
+    /// The `(bin width, bin count)` of `depth_bin` (the configuration's).
+    pub depth_bins: (f32, usize),
 }
 
 impl RgbdFeatures {
+    /// `depth_bin` value of a pixel the depth histogram does not count.
+    pub const NO_DEPTH_BIN: u16 = u16::MAX;
+
     /// Computes the maps of an interleaved RGB8 image (`width · height · 3` bytes) and a depth
     /// plane in metres (0 or NaN = no depth) over `roi` (the whole image for `None`; clipped to
     /// the image).
@@ -367,6 +375,9 @@ impl RgbdFeatures {
         let (rw, rh) = (x1 - x0, y1 - y0);
         let mut hue = Vec::with_capacity(rw as usize * rh as usize);
         let mut dep = Vec::with_capacity(rw as usize * rh as usize);
+        let mut dbin = Vec::with_capacity(rw as usize * rh as usize);
+        #[allow(clippy::cast_precision_loss)]
+        let n_bins_f = cfg.depth_bins as f32;
         for y in y0..y1 {
             let row = y as usize * width as usize;
             for x in x0..x1 {
@@ -376,6 +387,7 @@ impl RgbdFeatures {
                 let z = depth.data[i];
                 if z.is_nan() || z == 0.0 {
                     dep.push(0.0);
+                    dbin.push(Self::NO_DEPTH_BIN);
                 } else if !z.is_finite() || z < 0.0 {
                     return Err(CoreError::invalid(
                         "depth",
@@ -386,6 +398,15 @@ impl RgbdFeatures {
                     .into());
                 } else {
                     dep.push(z);
+                    // as `DepthHistogram::bin_of`: floor(z / Δ_d), counted below B_d
+                    // (z / Δ_d > 0, so truncation is the floor)
+                    let b = z / cfg.depth_bin_m;
+                    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                    dbin.push(if b < n_bins_f {
+                        b as u16
+                    } else {
+                        Self::NO_DEPTH_BIN
+                    });
                 }
             }
         }
@@ -432,6 +453,8 @@ impl RgbdFeatures {
             hue_bin: Plane::from_vec(rw, rh, hue)?,
             lbp_class: Plane::from_vec(rw, rh, lbp)?,
             depth_m: Plane::from_vec(rw, rh, dep)?,
+            depth_bin: Plane::from_vec(rw, rh, dbin)?,
+            depth_bins: (cfg.depth_bin_m, cfg.depth_bins),
         })
     }
 }
@@ -439,14 +462,15 @@ impl RgbdFeatures {
 fn bin_unchecked(b: &HueBinner, p: &[u8]) -> u8 {
     let c = rgb_to_hsv(p[0], p[1], p[2]);
     if c.s >= b.s_min && c.v >= b.v_min {
-        let k = (c.h * f32::from(b.hue_bins) / 360.0).floor().max(0.0);
+        // non-negative, so truncation is the floor (and avoids a libm call per pixel)
+        let k = (c.h * f32::from(b.hue_bins) / 360.0).max(0.0);
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let k = (k as u32).min(u32::from(b.hue_bins) - 1);
         u8::try_from(k).unwrap_or(0)
     } else if b.achromatic_bins == 0 {
         HueBinner::NO_BIN
     } else {
-        let a = (c.v * f32::from(b.achromatic_bins)).floor().max(0.0);
+        let a = (c.v * f32::from(b.achromatic_bins)).max(0.0);
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let a = (a as u32).min(u32::from(b.achromatic_bins) - 1);
         u8::try_from(u32::from(b.hue_bins) + a).unwrap_or(HueBinner::NO_BIN)
@@ -644,13 +668,28 @@ impl PatchMultiCueModel {
         let mut h = DepthHistogram::new(self.cfg.depth_bin_m, self.cfg.depth_bins)?;
         let (x0, y0, x1, y1) = clip(&c, f);
         let s = self.cfg.stride as usize;
-        for y in (y0..y1).step_by(s) {
-            let row = f.depth_m.row(y - f.roi.1);
-            for &z in row[(x0 - f.roi.0) as usize..(x1 - f.roi.0) as usize]
-                .iter()
-                .step_by(s)
-            {
-                h.add(z)?;
+        let (lo, hi) = ((x0 - f.roi.0) as usize, (x1 - f.roi.0) as usize);
+        if f.depth_bins == (self.cfg.depth_bin_m, self.cfg.depth_bins) {
+            // the per-frame bin map: no per-pixel division, floor or validation
+            for y in (y0..y1).step_by(s) {
+                let zr = &f.depth_m.row(y - f.roi.1)[lo..hi];
+                let br = &f.depth_bin.row(y - f.roi.1)[lo..hi];
+                let br = &br[..zr.len()];
+                let mut x = 0;
+                while x < zr.len() {
+                    let b = br[x];
+                    if b != RgbdFeatures::NO_DEPTH_BIN {
+                        h.add_to_bin(usize::from(b), zr[x]);
+                    }
+                    x += s;
+                }
+            }
+        } else {
+            for y in (y0..y1).step_by(s) {
+                let row = f.depth_m.row(y - f.roi.1);
+                for &z in row[lo..hi].iter().step_by(s) {
+                    h.add(z)?;
+                }
             }
         }
         let Some(peak) = h.peak_smoothed(self.gate)? else {
@@ -705,6 +744,15 @@ impl PatchMultiCueModel {
         };
         let mut ca = vec![0.0f32; nc];
         let mut ta = vec![0.0f32; nt];
+        // The paper's kernel (flat depth band, no image-plane kernel): every weight is 1, so the
+        // histograms are integer counts (exact in f32 below 2^24, hence identical to the
+        // general path) and a pixel needs one band test.
+        let flat =
+            cfg.depth_kernel && !cfg.spatial_kernel && cfg.depth_profile == DepthProfile::Flat;
+        // indexed by the u8 codes directly (no bounds test); codes ≥ nc / nt are dropped below
+        let mut cnt_c = [0u32; 256];
+        let mut cnt_t = [0u32; 256];
+        let edges = z_star.map(|zs| band_edges(zs, cfg.tau_z));
         let (mut box_occ, mut box_depth) = (0usize, 0usize);
         let tau = cfg.tau_z;
         let s = cfg.stride as usize;
@@ -723,7 +771,46 @@ impl PatchMultiCueModel {
                 (cell.x0 + cell.x1 - 1) as f32 / 2.0,
                 (cell.y0 + cell.y1 - 1) as f32 / 2.0,
             );
-            for y in (y0..y1).step_by(s) {
+            if flat {
+                cnt_c.fill(0);
+                cnt_t.fill(0);
+                let (lo, hi) = ((x0 - f.roi.0) as usize, (x1 - f.roi.0) as usize);
+                for y in (y0..y1).step_by(s) {
+                    let ry = y - f.roi.1;
+                    let zr = &f.depth_m.row(ry)[lo..hi];
+                    let Some((z_lo, z_hi)) = edges else {
+                        with_depth += zr.iter().step_by(s).filter(|&&z| z > 0.0).count();
+                        continue;
+                    };
+                    let n = zr.len();
+                    let hr = &f.hue_bin.row(ry)[lo..hi][..n];
+                    let lr = &f.lbp_class.row(ry)[lo..hi][..n];
+                    let mut x = 0;
+                    while x < n {
+                        let (z, c, t) = (zr[x], hr[x], lr[x]);
+                        x += s;
+                        if z > 0.0 {
+                            with_depth += 1;
+                            if z < z_lo {
+                                occ += 1;
+                            } else if z <= z_hi {
+                                fg += 1;
+                                cnt_c[usize::from(c)] += 1;
+                                cnt_t[usize::from(t)] += 1;
+                            }
+                        }
+                    }
+                }
+                for (a, &n) in ca.iter_mut().zip(&cnt_c) {
+                    *a = n as f32;
+                }
+                for (a, &n) in ta.iter_mut().zip(&cnt_t) {
+                    *a = n as f32;
+                }
+            }
+            // the general path (Epanechnikov profiles, no depth kernel): per-pixel weights
+            let general_rows = if flat { y1..y1 } else { y0..y1 };
+            for y in general_rows.step_by(s) {
                 let ry = (y - f.roi.1) as usize;
                 let rw = f.depth_m.width as usize;
                 let base = ry * rw;
@@ -829,6 +916,18 @@ impl PatchMultiCueModel {
         }
     }
 
+    /// The cue score (eq. 7) of a candidate identical to the template over `n_scored` patches:
+    /// `n_scored · φ(1)` (`φ(1)` for the mean-square aggregate, which is normalised). Used for
+    /// the spec §8 guard on the texture-only tier.
+    #[must_use]
+    #[allow(clippy::cast_precision_loss)]
+    pub fn cue_self_score(&self, n_scored: usize) -> f32 {
+        match self.cfg.aggregate {
+            Aggregate::CotSquared => self.phi(1.0) * n_scored as f32,
+            Aggregate::MeanSquare => self.phi(1.0),
+        }
+    }
+
     /// Scores a descriptor over the valid patches `V` (eqs. 6-8, pass fractions).
     #[must_use]
     pub fn score_descriptor(&self, d: &PatchDescriptor) -> CandidateScore {
@@ -923,6 +1022,35 @@ impl PatchMultiCueModel {
         }
         changed
     }
+}
+
+/// The exact f32 edges of the depth band: for every f32 `z`, `(z − zs)/τ < −1` ⟺ `z < lo` and
+/// `(z − zs)/τ ≤ 1` ⟺ `z ≤ hi` (both sides are monotone in `z` under rounding, so the edges are
+/// found by stepping ulps from `zs ∓ τ`). The band test then needs no subtraction or division
+/// per pixel and classifies every pixel exactly as the formula does.
+fn band_edges(zs: f32, tau: f32) -> (f32, f32) {
+    let d = |z: f32| (z - zs) / tau;
+    let mut lo = zs - tau;
+    for _ in 0..64 {
+        if d(lo) < -1.0 {
+            lo = lo.next_up();
+        } else if d(lo.next_down()) >= -1.0 {
+            lo = lo.next_down();
+        } else {
+            break;
+        }
+    }
+    let mut hi = zs + tau;
+    for _ in 0..64 {
+        if d(hi) > 1.0 {
+            hi = hi.next_down();
+        } else if d(hi.next_up()) <= 1.0 {
+            hi = hi.next_up();
+        } else {
+            break;
+        }
+    }
+    (lo, hi)
 }
 
 fn finish(acc: &[f32], m_min: f64) -> Result<Option<Histogram>, VisionError> {
@@ -1126,6 +1254,26 @@ mod tests {
                 }
             }
             prop_assert_eq!(seen, changed);
+        }
+
+        /// The precomputed band edges classify every depth exactly as `(z − Z*)/τ` does.
+        #[test]
+        fn band_edges_are_exact(zs in 0.05f32..8.0, tau in 0.01f32..1.0, t in -2.0f32..2.0, k in -3i32..=3) {
+            let (lo, hi) = band_edges(zs, tau);
+            // around both edges, a few ulps either side, and a random depth
+            let mut zs_to_test = vec![zs + t * tau];
+            for e in [lo, hi] {
+                let mut z = e;
+                for _ in 0..k.unsigned_abs() {
+                    z = if k < 0 { z.next_down() } else { z.next_up() };
+                }
+                zs_to_test.extend([z, z.next_up(), z.next_down()]);
+            }
+            for z in zs_to_test {
+                let d = (z - zs) / tau;
+                prop_assert_eq!(z < lo, d < -1.0, "z {} lo {}", z, lo);
+                prop_assert_eq!(z <= hi, d <= 1.0, "z {} hi {}", z, hi);
+            }
         }
 
         /// Scores are non-negative, fractions in [0, 1], deterministic.

@@ -199,6 +199,30 @@ impl Writer {
             mot: String::new(),
         })
     }
+    fn line(&mut self, k: usize, b: &BBox, conf: bool) {
+        let [x, y, bw, bh] = b.to_ltwh();
+        let _ = writeln!(
+            self.mot,
+            "{},1,{x:.2},{y:.2},{bw:.2},{bh:.2},{},-1,-1,-1",
+            k + 1,
+            u8::from(conf)
+        );
+    }
+    /// The initialisation frame: the given box, conf 1 (the first line of `boxes.txt`).
+    fn init_frame(
+        &mut self,
+        k: usize,
+        w: u32,
+        h: u32,
+        rgb: &[u8],
+        init: &BBox,
+    ) -> Result<(), CmdError> {
+        self.line(k, init, true);
+        let mut img = RgbImage::from_raw(w, h, rgb.to_vec()).ok_or("RGB buffer size")?;
+        draw(&mut img, init, Rgb([0, 230, 0]), None);
+        img.save(self.dir.join(format!("frames/{:06}.png", k + 1)))?;
+        Ok(())
+    }
     fn frame(
         &mut self,
         k: usize,
@@ -209,13 +233,7 @@ impl Writer {
         gt: Option<&BBox>,
     ) -> Result<(), CmdError> {
         if let Some(b) = o.bbox {
-            let [x, y, bw, bh] = b.to_ltwh();
-            let _ = writeln!(
-                self.mot,
-                "{},1,{x:.2},{y:.2},{bw:.2},{bh:.2},{},-1,-1,-1",
-                k + 1,
-                u8::from(o.confirmed)
-            );
+            self.line(k, &b, o.confirmed);
         }
         let mut img = RgbImage::from_raw(w, h, rgb.to_vec()).ok_or("RGB buffer size")?;
         if let Some(b) = o.bbox {
@@ -257,6 +275,13 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
     let id = ScenarioId::from_name(&args.scenario)?;
     let scene = RgbdScene::new(id, args.seed)?;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
+    if let Some(w) = writer.as_mut() {
+        // frame 0 is the initialisation frame (the tracker starts on frame 0's amodal box)
+        let f0 = scene.render(0)?;
+        if let Some(b) = f0.truth.amodal {
+            w.init_frame(0, 640, 480, &f0.rgb, &b)?;
+        }
+    }
     let mut werr: Option<CmdError> = None;
     let odo = if args.noisy_odometry {
         OdometryFeed::Noisy
@@ -381,6 +406,9 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
             }
             let mut t = RgbdPersonTracker::new(c)?;
             t.init(stamp, &frame, init)?;
+            if let Some(wr) = writer.as_mut() {
+                wr.init_frame(k, w, h, &frame.rgb, &init)?;
+            }
             tr = Some(t);
         }
     }
@@ -457,5 +485,110 @@ mod tests {
         assert!(parse_box("1,2,nan,4").is_err());
         assert!(parse_box("1,2").is_err());
         assert_eq!(0x1234u16.rotate_right(3), 0x8246); // (v >> 3) | (v << 13)
+    }
+
+    /// A tiny PTB-layout sequence (`rgb/r-<ts>-<n>.png`, `depth/d-<ts>-<n>.png` with the 3-bit
+    /// circular shift, `init.txt`): a striped person 2 m away stepping right over a wall 4 m away.
+    fn write_ptb(dir: &Path, n: u32, with_init: bool) {
+        let (w, h) = (96u32, 72u32);
+        std::fs::create_dir_all(dir.join("rgb")).unwrap();
+        std::fs::create_dir_all(dir.join("depth")).unwrap();
+        for k in 0..n {
+            let x0 = 36 + 2 * k;
+            let person = |x: u32, y: u32| (x0..x0 + 24).contains(&x) && (12..60).contains(&y);
+            let rgb = RgbImage::from_fn(w, h, |x, y| {
+                if person(x, y) {
+                    // three vertical colour bands, darker every other 6 rows
+                    let c =
+                        [[40u8, 90, 200], [220, 180, 60], [200, 40, 60]][((x - x0) / 8) as usize];
+                    let d = if (y / 6) % 2 == 0 { 1 } else { 2 };
+                    Rgb(c.map(|v| v / d))
+                } else {
+                    let g = u8::try_from(100 + (x * 7 + y * 13) % 50).unwrap();
+                    Rgb([g, g, g])
+                }
+            });
+            rgb.save(dir.join(format!("rgb/r-{}-{}.png", 1000 + 33 * k, k + 1)))
+                .unwrap();
+            let depth = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(w, h, |x, y| {
+                let mm: u16 = if person(x, y) { 2000 } else { 4000 };
+                image::Luma([mm.rotate_left(3)])
+            });
+            depth
+                .save(dir.join(format!("depth/d-{}-{}.png", 1010 + 33 * k, k + 1)))
+                .unwrap();
+        }
+        if with_init {
+            std::fs::write(dir.join("init.txt"), "36,12,24,48\n").unwrap();
+        }
+    }
+
+    fn args(dir: &Path, out: Option<PathBuf>) -> RgbdArgs {
+        RgbdArgs {
+            scenario: "s1".into(),
+            seed: 0,
+            sequence: Some(dir.to_path_buf()),
+            init: None,
+            depth_format: "ptb".into(),
+            baseline: false,
+            config: None,
+            noisy_odometry: false,
+            out,
+        }
+    }
+
+    #[test]
+    fn ptb_sequence_writes_every_frame_including_the_first() {
+        let root = std::env::temp_dir().join(format!("quarry-rgbd-ptb-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let seq = root.join("seq");
+        write_ptb(&seq, 4, true);
+        let res = root.join("res");
+        let a = args(&seq, Some(res.clone()));
+        run_sequence(&a, &seq, &config(&a).unwrap(), &Output { json: true }).unwrap();
+        let boxes = std::fs::read_to_string(res.join("boxes.txt")).unwrap();
+        let lines: Vec<Vec<f64>> = boxes
+            .lines()
+            .map(|l| l.split(',').map(|t| t.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(lines.len(), 4, "{boxes}");
+        // line 1 = frame 1 = the init box, conf 1
+        assert_eq!(&lines[0][..7], &[1.0, 1.0, 36.0, 12.0, 24.0, 48.0, 1.0]);
+        for (k, l) in lines.iter().enumerate() {
+            assert!((l[0] - (k as f64 + 1.0)).abs() < 1e-12, "{boxes}");
+            assert!(res.join(format!("frames/{:06}.png", k + 1)).exists());
+        }
+        // the tracker follows the person 2 px/frame to the right (box centre x = 48 + 2k; the
+        // candidate grid stride is 3 px)
+        for (k, l) in lines.iter().enumerate().skip(1) {
+            let cx = l[2] + l[4] / 2.0;
+            assert!(
+                (cx - (48.0 + 2.0 * k as f64)).abs() <= 3.0,
+                "frame {}: {boxes}",
+                k + 1
+            );
+            assert!((l[6] - 1.0).abs() < 1e-12, "{boxes}");
+        }
+        // errors, never panics: no init, a missing depth frame
+        let bad = root.join("noinit");
+        write_ptb(&bad, 2, false);
+        let e = run_sequence(
+            &args(&bad, None),
+            &bad,
+            &config(&a).unwrap(),
+            &Output { json: true },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("init.txt"), "{e}");
+        std::fs::remove_file(seq.join("depth/d-1043-2.png")).unwrap();
+        let e = run_sequence(
+            &args(&seq, None),
+            &seq,
+            &config(&a).unwrap(),
+            &Output { json: true },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("frame 2"), "{e}");
+        let _ = std::fs::remove_dir_all(&root);
     }
 }
