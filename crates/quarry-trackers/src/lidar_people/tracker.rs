@@ -492,7 +492,9 @@ struct KfTrack {
 }
 
 /// The `kf-gnn` baseline (spec §2.9): the same detector, a CV Kalman filter per track, a χ²
-/// innovation gate, Hungarian GNN and M-of-N confirmation.
+/// innovation gate, Hungarian GNN and M-of-N confirmation. An unassigned detection within
+/// `r_icp` of a track (or of a detection that started a track in the same frame) is a second
+/// contour fit of the same body and starts no track.
 #[derive(Debug, Clone)]
 pub struct KfGnnTracker<C, R> {
     /// The detector.
@@ -501,6 +503,7 @@ pub struct KfGnnTracker<C, R> {
     meas: Position2,
     gamma: f64,
     sigma_r: f64,
+    r_icp: f64,
     life: MOfN,
     max_coast_report: u32,
     tracks: Vec<KfTrack>,
@@ -524,6 +527,7 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
             meas,
             gamma: cfg.kf_gamma,
             sigma_r: cfg.kf_sigma_r,
+            r_icp: cfg.r_icp,
             life,
             max_coast_report: cfg.kf_max_coast_report,
             tracks: Vec::new(),
@@ -614,10 +618,25 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         self.tracks
             .retain(|tr| self.life.state(&tr.rec) != TrackState::Deleted);
         let s2 = self.sigma_r * self.sigma_r;
+        // A detection within R_icp (one body's data radius) of a track or of a detection that
+        // already started a track this frame is a second fit of the same body (the detector
+        // re-queues a cluster whose contour left points outside it), not a new person: it
+        // starts no track (spec 003 §2.9 line 7 leaves the rule open; common GNN practice).
+        let r2 = self.r_icp * self.r_icp;
+        let mut occupied: Vec<Point2> = self
+            .tracks
+            .iter()
+            .map(|tr| Point2::new(tr.kf.mean()[0], tr.kf.mean()[1]))
+            .collect();
         for (j, d) in dets.iter().enumerate() {
             if used[j] {
                 continue;
             }
+            let c = Point2::new(d.pose.x, d.pose.y);
+            if occupied.iter().any(|o| (o - c).norm_squared() <= r2) {
+                continue;
+            }
+            occupied.push(c);
             let x0 = Vector4::new(d.pose.x, d.pose.y, 0.0, 0.0);
             let p0 = Matrix4::from_diagonal(&Vector4::new(s2, s2, 1.0, 1.0));
             let g = Gaussian::try_new(x0, p0)?;
