@@ -289,19 +289,19 @@ fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
             &gt_trajs,
         )?;
     }
-    if output.json {
-        let js = serde_json::to_string(&summary).map_err(|e| e.to_string())?;
-        println!("{js}");
-    } else {
-        print_summary(&summary);
-        if let Some(out) = &args.out {
-            println!(
-                "wrote tracks.csv, tracks_mot.txt, gt_people.csv, metrics.json, plot.png to {}",
-                out.display()
-            );
-        }
-    }
-    Ok(())
+    output
+        .emit(&summary, || {
+            let mut t = summary_text(&summary);
+            if let Some(out) = &args.out {
+                let _ = writeln!(
+                    t,
+                    "wrote tracks.csv, tracks_mot.txt, gt_people.csv, metrics.json, plot.png to {}",
+                    out.display()
+                );
+            }
+            t
+        })
+        .map_err(|e| e.to_string())
 }
 
 /// The JSON summary of a `--scans` run.
@@ -431,13 +431,9 @@ fn run_recorded_cmd(
         let js = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
         std::fs::write(out.join("metrics.json"), js).map_err(|e| e.to_string())?;
     }
-    if output.json {
-        println!(
-            "{}",
-            serde_json::to_string(&summary).map_err(|e| e.to_string())?
-        );
-    } else {
-        println!(
+    output.emit(&summary, || {
+        let mut t = String::new();
+        let _ = writeln!(t,
             "quarry lidar --scans {}: preset {}, {} beams, {} scans ({} warm-up scans not tracked)",
             summary.scans_file,
             summary.preset,
@@ -445,7 +441,7 @@ fn run_recorded_cmd(
             summary.frames,
             summary.warm_up_scans
         );
-        println!(
+        let _ = writeln!(t,
             "  skipped: {} malformed rows, {} backwards stamps; {} invalid beams; {} gaps (longest {:.3} s)",
             summary.skipped_bad_rows,
             summary.skipped_backwards,
@@ -453,12 +449,12 @@ fn run_recorded_cmd(
             summary.gaps,
             summary.longest_gap_s
         );
-        println!(
+        let _ = writeln!(t,
             "  tracks: {} distinct ids, {} living >= 1 s; scans with 0,1,2,.. tracks: {:?}",
             summary.distinct_tracks, summary.tracks_over_1s, summary.track_count_histogram
         );
         if let Some(l) = &summary.labelled {
-            println!(
+            let _ = writeln!(t,
                 "  vs labelled legs: {}/{} scans matched within {} m, RMSE {:.3} m, mean {:.3} m, median {:.3} m; two-leg labels: {} matched, RMSE {:.3} m",
                 l.matched,
                 l.labelled,
@@ -470,39 +466,48 @@ fn run_recorded_cmd(
                 l.rmse_two_legs_m
             );
         }
-        println!(
+        let _ = writeln!(t,
             "  tracker {:.3} ms per scan, background {:.3} ms per scan",
             summary.ms_per_frame, summary.client_ms_per_scan
         );
-    }
-    Ok(())
+        t
+    })
+    .map_err(|e| e.to_string())
 }
 
-fn print_summary(s: &LidarSummary) {
+/// The human-readable summary of a simulated run.
+fn summary_text(s: &LidarSummary) -> String {
     let m = &s.metrics;
-    println!(
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
         "quarry lidar: preset {}, band {}, {} frames",
         s.preset, s.band, s.frames
     );
-    println!(
+    let _ = writeln!(
+        t,
         "  paper success  {}/{} = {:.2} %   (detectable frames: {:.2} %)",
         m.success,
         m.frames,
         100.0 * s.success_rate,
         100.0 * s.success_rate_detectable
     );
-    println!(
+    let _ = writeln!(
+        t,
         "  localisation   mean {:.3} m, RMSE {:.3} m, median {:.3} m, p95 {:.3} m ({} pairs)",
         m.loc.mean, m.loc.rmse, m.loc.median, m.loc.p95, m.loc.n
     );
-    println!(
+    let _ = writeln!(
+        t,
         "  MOTA {:.3}  MOTP {:.3} m  IDF1 {:.3}  HOTA {:.3}  IDSW {}  FP {}  FN {}",
         s.mota, s.motp, s.idf1, s.hota, m.idsw, m.fp, m.fn_
     );
-    println!(
+    let _ = writeln!(
+        t,
         "  server {:.3} ms per fused frame, client {:.3} ms per scan",
         s.ms_per_frame, s.client_ms_per_scan
     );
+    t
 }
 
 pub(crate) fn write_tracks(
