@@ -77,17 +77,12 @@ fn key_level(k: u64) -> f64 {
     }
 }
 
-/// Floods `relief` from `seeds` (Algorithm WS of spec 004 §2.5). `seeds.labels` gives the seed
-/// label of each seed pixel (0 elsewhere) and `seeds.minima` the seed records, copied into the
-/// result.
-///
-/// Errors: empty relief, NaN/infinite values, size mismatch between relief and seeds, seed
-/// labels outside 1..=K, no seed at all.
-pub fn flood<T: Relief>(
+/// The input checks of a flood: a valid relief, seeds of the same size, at least one seed, seed
+/// labels in `0..=K`. Returns `K`.
+pub(crate) fn check_flood_input<T: Relief>(
     relief: &Plane<T>,
     seeds: &Minima,
-    options: WatershedOptions,
-) -> Result<Segmentation, VisionError> {
+) -> Result<u32, VisionError> {
     check_relief(relief, "watershed")?;
     if relief.dimensions() != seeds.labels.dimensions() {
         return Err(VisionError::SizeMismatch {
@@ -110,6 +105,21 @@ pub fn flood<T: Relief>(
         )
         .into());
     }
+    Ok(k)
+}
+
+/// Floods `relief` from `seeds` (Algorithm WS of spec 004 §2.5). `seeds.labels` gives the seed
+/// label of each seed pixel (0 elsewhere) and `seeds.minima` the seed records, copied into the
+/// result.
+///
+/// Errors: empty relief, NaN/infinite values, size mismatch between relief and seeds, seed
+/// labels outside 1..=K, no seed at all.
+pub fn flood<T: Relief>(
+    relief: &Plane<T>,
+    seeds: &Minima,
+    options: WatershedOptions,
+) -> Result<Segmentation, VisionError> {
+    check_flood_input(relief, seeds)?;
     let mut labels = seeds.labels.data.clone();
     flood_labels(
         &relief.data,
@@ -968,7 +978,7 @@ pub(crate) mod reference {
     use super::WatershedOptions;
     use super::{key_level, level_key};
     use crate::VisionError;
-    use crate::minima::{Minima, Relief, check_relief};
+    use crate::minima::{Minima, Relief};
     use quarry_core::{Plane, Segmentation};
     use std::cmp::Reverse;
     use std::collections::BinaryHeap;
@@ -1068,28 +1078,7 @@ pub(crate) mod reference {
         seeds: &Minima,
         options: WatershedOptions,
     ) -> Result<Segmentation, VisionError> {
-        check_relief(relief, "watershed")?;
-        if relief.dimensions() != seeds.labels.dimensions() {
-            return Err(VisionError::SizeMismatch {
-                what: "watershed relief vs seeds",
-                a: relief.dimensions(),
-                b: seeds.labels.dimensions(),
-            });
-        }
-        let k = seeds.minima.len() as u32;
-        if k == 0 {
-            return Err(quarry_core::CoreError::Empty {
-                what: "watershed seeds",
-            }
-            .into());
-        }
-        if let Some(&bad) = seeds.labels.data.iter().find(|&&l| l > k) {
-            return Err(quarry_core::CoreError::invalid(
-                "seed label",
-                format!("{bad} is not in 0..={k}"),
-            )
-            .into());
-        }
+        super::check_flood_input(relief, seeds)?;
         let (w, h) = (relief.width as usize, relief.height as usize);
         let d = &relief.data;
         let mut labels = seeds.labels.data.clone();
