@@ -47,6 +47,9 @@ pub const MOTION_STEP_US: i64 = 5_000;
 pub const FRAME_US: i64 = 50_000;
 /// Scan period of the UTM-30LX, microseconds (25 ms).
 pub const SCAN_US: i64 = 25_000;
+/// Braking and starting acceleration of a [`Motion::Route`] walker at its turning points, m/s²
+/// (a comfortable pedestrian deceleration: from 1.0 m/s to a stop in 1 s over 0.5 m).
+pub const ROUTE_ACCEL: f64 = 1.0;
 
 // ---------------------------------------------------------------------------------------------
 // Geometry: ray intersections
@@ -361,8 +364,10 @@ pub enum Motion {
     Waypoint,
     /// Heading random walk (0.8 rad/√s), speed redrawn every 5 s.
     RandomWalk,
-    /// A fixed closed route of waypoints at a fixed speed (scripted scenarios); the walker turns
-    /// on the spot at each waypoint.
+    /// A fixed closed route of waypoints at a fixed cruising speed (scripted scenarios). The
+    /// walker brakes at [`ROUTE_ACCEL`] to a stop at each waypoint (0.3 m before it, as a
+    /// waypoint walker switches targets), turns on the spot and accelerates back at the same
+    /// rate: a person cannot reverse at walking speed within one step.
     Route(Vec<[f64; 2]>),
 }
 
@@ -591,7 +596,18 @@ impl Walker {
             err.clamp(-max_turn, max_turn)
         };
         self.state.heading = quarry_core::wrap_angle(self.state.heading + turn);
-        let v = self.v_leg;
+        let v = if matches!(self.spec.motion, Motion::Route(_)) {
+            // brake so as to stop where the turn happens, and accelerate out of it (and out of a
+            // stop behind another person) at ROUTE_ACCEL; never quite 0, so the turn is reached
+            let to_turn = ((self.target - self.state.pos).norm() - 0.3).max(0.0);
+            (2.0 * ROUTE_ACCEL * to_turn)
+                .sqrt()
+                .min(self.state.speed + ROUTE_ACCEL * dt)
+                .min(self.v_leg)
+                .max(ROUTE_ACCEL * dt)
+        } else {
+            self.v_leg
+        };
         let (s, c) = self.state.heading.sin_cos();
         let next = Point2::new(self.state.pos.x + v * dt * c, self.state.pos.y + v * dt * s);
         let (free, clear) = step_allowed(room, others, self.state.pos, next);
@@ -1077,24 +1093,33 @@ impl Scenario {
         s
     }
 
-    /// `crossing`: two people crossing at right angles at 1.0 m/s, closest approach about 0.6 m
-    /// (their start points are timed so), 30 s.
+    /// `crossing`: two people walking back and forth at 1.0 m/s on perpendicular routes that
+    /// cross at (6.2, 4.8), 30 s. Both routes are centred on the crossing point and equally long
+    /// (4.6 m between the turning points), and the second walker starts 0.86 s after the first,
+    /// so *every* meeting, not only the first, passes at the spec's closest approach (0.61 m:
+    /// two perpendicular walkers at speed v offset by Δt pass at v·Δt/√2; 1 cm above the 0.6 m
+    /// avoidance distance, so neither has to yield). They brake into and out of each turn
+    /// ([`Motion::Route`]), so the meetings come every 5.6 s: t ≈ 7.8, 13.3, 18.9 and 24.5 s.
     pub fn crossing(seed: u64) -> Self {
+        // a route walker turns when within 0.3 m of its turning target
+        const HALF: f64 = 2.3 + 0.3;
+        const C: [f64; 2] = [6.2, 4.8];
+        let lag = 0.61 * std::f64::consts::SQRT_2;
         let mut s = Self::base("crossing", seed, 30.0);
         s.people = vec![
             PersonSpec {
                 id: 0,
                 speed: (1.0, 1.0),
-                motion: Motion::Route(vec![[8.0, 5.25], [2.2, 5.25]]),
-                spawn: Some([2.2, 5.25]),
+                motion: Motion::Route(vec![[C[0] + HALF, C[1]], [C[0] - HALF, C[1]]]),
+                spawn: Some([C[0] - HALF + 0.3, C[1]]),
                 t_spawn: 5.0,
             },
             PersonSpec {
                 id: 1,
                 speed: (1.0, 1.0),
-                motion: Motion::Route(vec![[5.6, 7.0], [5.6, 1.0]]),
-                spawn: Some([5.6, 1.0]),
-                t_spawn: 5.0,
+                motion: Motion::Route(vec![[C[0], C[1] + HALF], [C[0], C[1] - HALF]]),
+                spawn: Some([C[0], C[1] - HALF + 0.3]),
+                t_spawn: 5.0 + lag,
             },
         ];
         s
@@ -1611,6 +1636,53 @@ mod tests {
                 moving as f64 > 0.9 * total as f64,
                 "{band:?}: {moving}/{total}"
             );
+        }
+    }
+
+    #[test]
+    fn crossing_walkers_pass_at_0_6_m_every_time_and_turn_without_a_velocity_jump() {
+        // spec §5: two people crossing at right angles at 1.0 m/s, closest approach 0.6 m. Every
+        // meeting of the back-and-forth routes, not only the first, must pass at that distance,
+        // and neither walker may be blocked or side-step (full speed within 1.5 m of the crossing
+        // point). At the route ends they brake, turn and start again: no velocity jump.
+        let mut d = Vec::new();
+        let mut last: Vec<Option<(f64, f64)>> = vec![None; 2];
+        let mut vel: Vec<Option<(f64, f64)>> = vec![None; 2];
+        for ev in Runner::new(Scenario::crossing(1)).unwrap() {
+            if let RoomEvent::Frame(f) = ev
+                && f.people.len() == 2
+            {
+                for (k, p) in f.people.iter().enumerate() {
+                    if (p.x - 6.2).hypot(p.y - 4.8) < 1.5 {
+                        assert!((p.speed - 1.0).abs() < 1e-12, "t {:?}: {p:?}", f.t);
+                    }
+                    assert!(p.speed <= 1.0 + 1e-12);
+                    if let Some((x, y)) = last[k] {
+                        let v = ((p.x - x) / 0.05, (p.y - y) / 0.05);
+                        if let Some(u) = vel[k] {
+                            let dv = (v.0 - u.0).hypot(v.1 - u.1);
+                            assert!(dv <= 0.08, "t {:?}: velocity jump {dv} m/s", f.t);
+                        }
+                        vel[k] = Some(v);
+                    }
+                    last[k] = Some((p.x, p.y));
+                }
+                let (a, b) = (&f.people[0], &f.people[1]);
+                d.push((f.t.0, (a.x - b.x).hypot(a.y - b.y)));
+            }
+        }
+        let minima: Vec<(i64, f64)> = d
+            .windows(3)
+            .filter(|w| w[1].1 < w[0].1 && w[1].1 <= w[2].1 && w[1].1 < 1.5)
+            .map(|w| w[1])
+            .collect();
+        assert!(
+            d.iter().all(|&(_, x)| x >= 0.6),
+            "closer than the avoidance distance"
+        );
+        assert!(minima.len() >= 4, "meetings {minima:?}");
+        for &(t, x) in &minima {
+            assert!((0.6..0.63).contains(&x), "meeting at t = {t} us: {x} m");
         }
     }
 
