@@ -99,34 +99,16 @@ fn empty_room_full_seeds_1_to_5() {
 }
 
 /// The crossing scenario (two people walking back and forth on perpendicular routes at 1 m/s,
-/// first closest approach about 0.6 m at t = 9.3 s, then further meetings where the walkers
-/// yield to their right), evaluated over 7-29 s (440 frames).
+/// every meeting at a closest approach of 0.61 m: t ≈ 7.8, 13.3, 18.9 and 24.5 s, braking into
+/// and out of each turn), evaluated over 7-29 s (440 frames).
 fn crossing(seed: u64, preset: Preset) -> Paper003Metrics {
     run(Scenario::crossing(seed), preset, 440)
 }
 
 #[test]
-fn crossing_is_tracked_by_faithful() {
-    // spec §8: paper success >= 90 % (CI: seed 1; the 10 seeds and the kf-gnn identity
-    // criterion are `crossing_ten_seeds`, whose kf-gnn part fails, see docs/lidar-people.md)
-    let f = crossing(1, Preset::Faithful);
-    assert!(f.success_rate() >= 0.9, "success {}", f.success_rate());
-    assert_eq!(f.idsw, 0);
-}
-
-#[test]
-fn kf_gnn_starts_no_second_track_on_one_body() {
-    // Seed 6's walkers give two or three contour fits per body in most frames; before new
-    // tracks were refused within R_icp of an existing one, kf-gnn reported 475 false-positive
-    // rows and 23 % success here (now 56 and 81 %).
-    let k = crossing(6, Preset::KfGnn);
-    assert!(k.fp <= 120, "false positives {}", k.fp);
-    assert!(k.success_rate() >= 0.7, "success {}", k.success_rate());
-}
-
-#[test]
-#[ignore = "long, and fails: kf-gnn switches identities in every seed, faithful < 90 % in 3 of 10 seeds (docs/lidar-people.md)"]
 fn crossing_ten_seeds() {
+    // spec §8: paper success >= 90 % for faithful, and kf-gnn without identity switch in at
+    // least 8 of 10 seeds (measured: faithful 90.2-99.8 %, kf-gnn IDSW 0 in 8 seeds, 1 in two)
     let mut low = Vec::new();
     let mut clean = 0;
     for seed in 1..=10 {
@@ -134,7 +116,9 @@ fn crossing_ten_seeds() {
         if f.success_rate() < 0.9 {
             low.push((seed, f.success_rate()));
         }
-        clean += usize::from(crossing(seed, Preset::KfGnn).idsw == 0);
+        let k = crossing(seed, Preset::KfGnn);
+        assert!(k.fp <= 20, "seed {seed}: kf-gnn false positives {}", k.fp);
+        clean += usize::from(k.idsw == 0);
     }
     assert!(low.is_empty(), "faithful success below 0.9: {low:?}");
     assert!(
