@@ -45,13 +45,70 @@ fn band_mid_short_faithful_and_kf_gnn() {
     );
 }
 
+/// The whole 60 s `single_line` run (1060 frames from 7 s): paper success, the share of frames
+/// in which the walker's nearest track (within d_match) has the most frequent id, the number of
+/// ids, and the localisation error.
+fn single_line_full(seed: u64, preset: Preset) -> (f64, f64, usize, f64, f64) {
+    let cfg = LidarPeopleConfig::preset(preset);
+    let run = run_room_default(Scenario::single_line(seed), &cfg, &mut |_| {}).unwrap();
+    let w = run.eval_window(TimeUs(7_000_000), 1060);
+    assert_eq!(w.len(), 1060);
+    let m = evaluate_paper003(&w, &gate_of(&cfg), cfg.min_num_point, cfg.d_match).unwrap();
+    let mut ids: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
+    for f in &w {
+        let [(_, g, _)] = f.gt[..] else {
+            panic!("one walker expected at {:?}", f.t)
+        };
+        let near = f
+            .tracks
+            .iter()
+            .map(|(id, p)| (*id, (p[0] - g[0]).hypot(p[1] - g[1])))
+            .filter(|&(_, d)| d <= cfg.d_match)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((id, _)) = near {
+            *ids.entry(id).or_default() += 1;
+        }
+    }
+    let modal = ids.values().copied().max().unwrap_or(0) as f64 / w.len() as f64;
+    eprintln!(
+        "single_line seed {seed} {preset:?}: success {:.4}, one id in {modal:.4} of frames ({} ids), mean {:.4} m, p95 {:.4} m",
+        m.success_rate(),
+        ids.len(),
+        m.loc.mean,
+        m.loc.p95
+    );
+    (m.success_rate(), modal, ids.len(), m.loc.mean, m.loc.p95)
+}
+
 #[test]
-fn single_walker_is_tracked() {
-    let sc = Scenario::single_line(3).with_duration(20.0);
-    let m = run(sc, Preset::Faithful, 260);
-    assert!(m.loc.mean < 0.06, "mean error {}", m.loc.mean);
-    assert!(m.loc.p95 < 0.12, "p95 {}", m.loc.p95);
-    assert!(m.success_rate() > 0.9, "success {}", m.success_rate());
+fn single_line_full_runs() {
+    // spec §8 `single_line`: paper success >= 98 %; one track id in >= 95 % of the frames;
+    // mean error <= 0.06 m, p95 <= 0.12 m. faithful meets all but the id criterion here (seeds
+    // 1-5; see `single_line_one_id_faithful`), kf-gnn all four.
+    for seed in 1..=5 {
+        for preset in [Preset::Faithful, Preset::KfGnn] {
+            let (success, modal, _, mean, p95) = single_line_full(seed, preset);
+            assert!(success >= 0.98, "seed {seed} {preset:?}: success {success}");
+            assert!(mean <= 0.06, "seed {seed} {preset:?}: mean error {mean}");
+            assert!(p95 <= 0.12, "seed {seed} {preset:?}: p95 {p95}");
+            if preset == Preset::KfGnn {
+                assert!(
+                    modal >= 0.95,
+                    "seed {seed}: one id in only {modal} of frames"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+#[ignore = "fails: faithful keeps one id in >= 95 % of the frames in 4 of 10 seeds; Table 1 deletes a track on its first frame with e* > d_m_matching (docs/lidar-people.md)"]
+fn single_line_one_id_faithful() {
+    let short: Vec<(u64, f64)> = (1..=10)
+        .map(|seed| (seed, single_line_full(seed, Preset::Faithful).1))
+        .filter(|&(_, modal)| modal < 0.95)
+        .collect();
+    assert!(short.is_empty(), "one id in < 95 % of frames: {short:?}");
 }
 
 /// False tracks of an empty room over the evaluation window (after the 7 s warm-up): rows per
