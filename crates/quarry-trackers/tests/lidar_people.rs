@@ -5,15 +5,20 @@
 use quarry_core::TimeUs;
 use quarry_sim::lidar_room::{Scenario, SpeedBand};
 use quarry_trackers::lidar_people::{
-    LidarPeopleConfig, Paper003Metrics, Preset, evaluate_paper003, gate_of, run_room_default,
+    FusionTime, LidarPeopleConfig, Paper003Metrics, Preset, evaluate_paper003, gate_of,
+    run_room_default,
 };
 
 fn run(sc: Scenario, preset: Preset, frames: usize) -> Paper003Metrics {
-    let cfg = LidarPeopleConfig::preset(preset);
-    let run = run_room_default(sc, &cfg, &mut |_| {}).unwrap();
+    run_cfg(sc, &LidarPeopleConfig::preset(preset), frames)
+}
+
+fn run_cfg(sc: Scenario, cfg: &LidarPeopleConfig, frames: usize) -> Paper003Metrics {
+    let preset = cfg.preset;
+    let run = run_room_default(sc, cfg, &mut |_| {}).unwrap();
     let w = run.eval_window(TimeUs(7_000_000), frames);
     assert_eq!(w.len(), frames);
-    let m = evaluate_paper003(&w, &gate_of(&cfg), cfg.min_num_point, cfg.d_match).unwrap();
+    let m = evaluate_paper003(&w, &gate_of(cfg), cfg.min_num_point, cfg.d_match).unwrap();
     eprintln!(
         "{preset:?}: success {:.3} det {:.3} loc {:.3} mota {:.3} idf1 {:.3} hota {:.3} idsw {} fp {} fn {}",
         m.success_rate(),
@@ -234,7 +239,8 @@ fn region_constraint_shortcut_equals_the_kd_tree_reference_on_a_room_stream() {
 fn band_mid_network_and_clock_variants() {
     // spec §8 (short CI version, 400 frames; the 2400-frame table is in docs/lidar-people.md):
     // success drops <= 3 points with wifi and <= 10 with bad vs ideal, <= 3 with skewed vs
-    // synced clocks; skewed_nosync is the negative control (reported only)
+    // synced clocks; skewed_nosync and fusion = arrival are the negative controls (reported;
+    // asserted only to be worse than the stamped fusion)
     use quarry_sim::lidar_room::{ClockProfile, NetworkModel};
     let sc = || Scenario::band(SpeedBand::Mid, 3, 2).with_duration(27.0);
     let s = |sc: Scenario| 100.0 * run(sc, Preset::Faithful, 400).success_rate();
@@ -243,8 +249,17 @@ fn band_mid_network_and_clock_variants() {
     let bad = s(sc().with_network(NetworkModel::bad()));
     let skewed = s(sc().with_clock(ClockProfile::Skewed));
     let nosync = s(sc().with_clock(ClockProfile::SkewedNoSync));
+    let by_arrival = LidarPeopleConfig {
+        fusion: FusionTime::Arrival,
+        ..LidarPeopleConfig::faithful()
+    };
+    let arrival = 100.0 * run_cfg(sc(), &by_arrival, 400).success_rate();
     eprintln!(
-        "success %: ideal {ideal:.2}, wifi {wifi:.2}, bad {bad:.2}, wifi+skewed {skewed:.2}, wifi+skewed_nosync {nosync:.2}"
+        "success %: ideal {ideal:.2}, wifi {wifi:.2}, bad {bad:.2}, wifi+skewed {skewed:.2}, wifi+skewed_nosync {nosync:.2}, wifi+arrival {arrival:.2}"
+    );
+    assert!(
+        arrival < wifi,
+        "fusion by arrival {arrival:.2} >= by stamp {wifi:.2}"
     );
     assert!(ideal - wifi <= 3.0, "wifi drops {:.2} points", ideal - wifi);
     assert!(ideal - bad <= 10.0, "bad drops {:.2} points", ideal - bad);

@@ -40,6 +40,18 @@ impl Preset {
     }
 }
 
+/// Which time the server fuses scans by (spec 003 §5, option `fusion`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum FusionTime {
+    /// The clients' synchronised capture stamps (§2.4; default).
+    #[default]
+    Capture,
+    /// The server's arrival times, ignoring the stamps: a negative control (§8), which puts
+    /// scans delayed by the network into later frames.
+    Arrival,
+}
+
 /// Every parameter of spec 003 §3. Tags: **[P]** paper, **[D]** UTM-30LX datasheet, **[Q]**
 /// proposed by the spec (with the reason given there).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -76,6 +88,9 @@ pub struct LidarPeopleConfig {
     pub tau_sync_s: f64,
     /// Maximum accepted latency L_max, seconds [Q: 0.1].
     pub l_max_s: f64,
+    /// Fuse by capture stamps (default) or by arrival times (`fusion = arrival`, a negative
+    /// control of §8).
+    pub fusion: FusionTime,
 
     // ----- MeanShift (§2.5) -----
     /// Flat-kernel bandwidth h, metres [Q: 0.30].
@@ -172,6 +187,7 @@ impl LidarPeopleConfig {
             frame_period_s: 0.05,
             tau_sync_s: 0.0125,
             l_max_s: 0.1,
+            fusion: FusionTime::Capture,
             bandwidth: 0.30,
             n_min_cluster: 3,
             a_m: 0.22,
@@ -329,5 +345,10 @@ mod tests {
         assert_eq!(LidarPeopleConfig::literal().k_m, 16);
         assert!(!LidarPeopleConfig::literal().icp_trim);
         assert!((c.gate_k * c.gate_k - 13.2767).abs() < 1e-3);
+        assert_eq!(c.fusion, FusionTime::Capture);
+        let a = LidarPeopleConfig::from_toml("fusion = \"arrival\"").unwrap();
+        assert_eq!(a.fusion, FusionTime::Arrival);
+        assert_eq!(LidarPeopleConfig::from_toml(&a.to_toml().unwrap()).unwrap(), a);
+        assert!(LidarPeopleConfig::from_toml("fusion = \"guess\"").is_err());
     }
 }

@@ -15,7 +15,7 @@ mod pipeline;
 mod recorded;
 mod tracker;
 
-pub use config::{LidarPeopleConfig, Preset};
+pub use config::{FusionTime, LidarPeopleConfig, Preset};
 pub use metrics::{
     EvalFrame, LocStats, Paper003Metrics, evaluate_paper003, loc_stats, match_within, paper_success,
 };

@@ -1,7 +1,7 @@
 //! The client and server halves of the distributed pipeline (spec 003 §1, §7), and the
 //! in-process run over the room simulator.
 
-use super::config::LidarPeopleConfig;
+use super::config::{FusionTime, LidarPeopleConfig};
 use super::metrics::EvalFrame;
 use super::tracker::{FusedPoints, LidarTrack};
 use crate::TrackerError;
@@ -326,6 +326,8 @@ pub fn encode_dynamic(scan: &DynamicScan, t_send: TimeUs) -> Result<Vec<Vec<u8>>
 pub struct AssemblerFusion {
     /// The assembler.
     pub assembler: FrameAssembler,
+    /// Which time a scan is fused by (`cfg.fusion`).
+    pub fusion: FusionTime,
 }
 
 impl AssemblerFusion {
@@ -351,12 +353,20 @@ impl AssemblerFusion {
         };
         let assembler =
             FrameAssembler::new(fc, &sc, TimeUs(0)).map_err(quarry_core::CoreError::from)?;
-        Ok(Self { assembler })
+        Ok(Self {
+            assembler,
+            fusion: cfg.fusion,
+        })
     }
 }
 
 impl Fusion for AssemblerFusion {
-    fn push(&mut self, scan: DynamicScan, arrival: TimeUs) -> Result<(), TrackerError> {
+    fn push(&mut self, mut scan: DynamicScan, arrival: TimeUs) -> Result<(), TrackerError> {
+        if self.fusion == FusionTime::Arrival {
+            // the negative control: the server's own clock stands in for the capture stamp
+            scan.t = arrival;
+            scan.synced = true;
+        }
         for d in encode_dynamic(&scan, scan.t)? {
             self.assembler.on_datagram(&d, arrival);
         }
