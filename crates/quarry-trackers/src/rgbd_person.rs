@@ -939,8 +939,53 @@ pub struct FrameRecord {
     pub pos_err_m: f64,
     /// IoU with the distractor (S5), 0 otherwise.
     pub iou_distractor: f64,
+    /// `H_out / (c_base·H_gt)`: output box height over the shrunk ground-truth height (S2's
+    /// scale check; `None` without output or ground truth).
+    pub height_ratio: Option<f64>,
+    /// On the first frame after an occlusion episode (a run of frames with visibility < 0.8),
+    /// the episode's template drift score: [`template_drift`] between the templates just before
+    /// and just after it.
+    pub drift: Option<f64>,
     /// Step time, milliseconds (wall clock, informative only).
     pub ms: f64,
+}
+
+/// The template drift score of spec 001 §5.4 (b) between two templates: the mean, over the
+/// patches valid in `before` and the cues (colour, texture) held by both, of the cosine between
+/// the two histograms. 1 means unchanged. `None` when no histogram pair exists.
+///
+/// # Errors
+/// Templates of different grids (patch counts) or histograms of different lengths.
+pub fn template_drift(
+    before: &PatchMultiCueModel,
+    after: &PatchMultiCueModel,
+) -> Result<Option<f64>, RgbdError> {
+    let (bc, bt) = before.template();
+    let (ac, at) = after.template();
+    if bc.len() != ac.len() || bt.len() != at.len() || before.valid().len() != bc.len() {
+        return Err(RgbdError::from(VisionError::from(CoreError::invalid(
+            "template drift",
+            format!(
+                "templates of different grids ({} and {} patches)",
+                bc.len(),
+                ac.len()
+            ),
+        ))));
+    }
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (k, &valid) in before.valid().iter().enumerate() {
+        if !valid {
+            continue;
+        }
+        for (b, a) in [(&bc[k], &ac[k]), (&bt[k], &at[k])] {
+            if let (Some(b), Some(a)) = (b, a) {
+                sum += f64::from(b.cosine(a).map_err(RgbdError::from)?);
+                n += 1;
+            }
+        }
+    }
+    #[allow(clippy::cast_precision_loss)]
+    Ok((n > 0).then(|| sum / n as f64))
 }
 
 /// Summary of a scenario run (spec §5.4).
@@ -967,6 +1012,12 @@ pub struct ScenarioSummary {
     pub distractor_frames: usize,
     /// Frames in `Lost`.
     pub lost_frames: usize,
+    /// Mean template drift score over the occlusion episodes (`None` without an episode; S1:
+    /// ≥ 0.95).
+    pub drift_score: Option<f64>,
+    /// Fraction of the frames after frame 5 with an output whose `H_out / (c_base·H_gt)` is
+    /// within ±10 % (S2: ≥ 0.95; frames without an output count as outside).
+    pub height_within_10pct: Option<f64>,
     /// Centre error of the output at the end of the S6 blackout (frame 130), pixels.
     pub blackout_end_err_px: Option<f64>,
     /// Mean step time, ms (wall clock, informative; see the criterion bench for speed).
@@ -1048,6 +1099,8 @@ pub fn run_scenario_multi(
         .iter()
         .map(|_| Vec::with_capacity(scene.len()))
         .collect();
+    // the template just before the current occlusion episode (visibility < 0.8), per run
+    let mut before: Vec<Option<Option<PatchMultiCueModel>>> = vec![None; runs.len()];
     for k in 1..n_frames.min(scene.len()) {
         let smp = scene.render(k).map_err(sim)?;
         let t = &smp.truth;
@@ -1065,6 +1118,9 @@ pub fn run_scenario_multi(
                 OdometryFeed::Noisy => t.delta_noisy,
             });
             tr.force_no_detection(t.detector_off);
+            if before[r].is_none() && t.visibility < 0.8 {
+                before[r] = Some(tr.template().cloned());
+            }
             let t0 = std::time::Instant::now();
             let o = tr.step(Stamp::from_frame(k as u64, scene.dt), &fr)?;
             let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -1079,6 +1135,15 @@ pub fn run_scenario_multi(
             };
             let gt = t.target_robot;
             let pos_err_m = (o.mean[0] - gt[0]).hypot(o.mean[1] - gt[1]);
+            let drift = if t.visibility >= 0.8 {
+                match (before[r].take(), tr.template()) {
+                    (Some(Some(b)), Some(a)) => template_drift(&b, a)?,
+                    _ => None,
+                }
+            } else {
+                None
+            };
+            let c_base = tr.config().c_base;
             recs[r].push(FrameRecord {
                 frame: k,
                 bbox: o.bbox,
@@ -1094,6 +1159,11 @@ pub fn run_scenario_multi(
                     (Some(b), Some(g)) => b.iou(&g),
                     _ => 0.0,
                 },
+                height_ratio: match (o.bbox, t.amodal) {
+                    (Some(b), Some(g)) if g.h > 0.0 => Some(b.h / (c_base * g.h)),
+                    _ => None,
+                },
+                drift,
                 ms,
             });
         }
@@ -1189,6 +1259,22 @@ pub fn summarise(name: &str, seed: u64, recs: &[FrameRecord]) -> ScenarioSummary
             .iter()
             .filter(|r| r.state == OcclusionState::Lost)
             .count(),
+        drift_score: {
+            let d: Vec<f64> = recs.iter().filter_map(|r| r.drift).collect();
+            (!d.is_empty()).then(|| mean(&d))
+        },
+        height_within_10pct: {
+            let late: Vec<&FrameRecord> = recs
+                .iter()
+                .filter(|r| r.frame > 5 && r.gt.is_some())
+                .collect();
+            (!late.is_empty()).then(|| {
+                late.iter()
+                    .filter(|r| r.height_ratio.is_some_and(|q| (q - 1.0).abs() <= 0.1))
+                    .count() as f64
+                    / late.len() as f64
+            })
+        },
         blackout_end_err_px: recs.iter().find(|r| r.frame == 130).and_then(|r| {
             if name.starts_with("s6") {
                 r.centre_err

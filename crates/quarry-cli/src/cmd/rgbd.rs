@@ -323,7 +323,8 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
         format!(
             "{} seed {} ({}): success@0.5 {:.3}, centre error {:.1} px, recovery {}, \
              updates at visibility < 0.6: {}, occlusion recall {}, 3-D RMSE {:.3} m, lost frames {}, \
-             distractor frames {}, S6 blackout-end error {}, {:.1} ms/frame\n",
+             distractor frames {}, S6 blackout-end error {}, template drift score {}, \
+             height within 10 % {}, {:.1} ms/frame\n",
             id.name(),
             args.seed,
             if args.baseline { "whole-target baseline" } else { "patch multi-cue" },
@@ -336,6 +337,8 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
             s.lost_frames,
             s.distractor_frames,
             fmt_opt(s.blackout_end_err_px, 1),
+            fmt_opt(s.drift_score, 3),
+            fmt_opt(s.height_within_10pct, 3),
             s.ms_per_frame
         )
     })

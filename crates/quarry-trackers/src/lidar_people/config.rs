@@ -348,7 +348,10 @@ mod tests {
         assert_eq!(c.fusion, FusionTime::Capture);
         let a = LidarPeopleConfig::from_toml("fusion = \"arrival\"").unwrap();
         assert_eq!(a.fusion, FusionTime::Arrival);
-        assert_eq!(LidarPeopleConfig::from_toml(&a.to_toml().unwrap()).unwrap(), a);
+        assert_eq!(
+            LidarPeopleConfig::from_toml(&a.to_toml().unwrap()).unwrap(),
+            a
+        );
         assert!(LidarPeopleConfig::from_toml("fusion = \"guess\"").is_err());
     }
 }
