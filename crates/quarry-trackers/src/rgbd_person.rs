@@ -1385,6 +1385,48 @@ mod tests {
         );
     }
 
+    #[test]
+    fn template_drift_is_one_for_an_unchanged_template_and_lower_for_another() {
+        let frame = |rgb: Vec<u8>| {
+            RgbdFrame::new(
+                640,
+                480,
+                rgb,
+                quarry_core::Plane::new(640, 480, 2.0),
+                quarry_core::EgoMotion::None,
+            )
+            .unwrap()
+        };
+        // a colour-noise frame (seeded LCG) and a flat grey one, same box
+        let mut x = 12_345u32;
+        let noise: Vec<u8> = (0..640 * 480 * 3)
+            .map(|_| {
+                x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (x >> 24) as u8
+            })
+            .collect();
+        let b = BBox::from_ltwh(300.0, 100.0, 80.0, 250.0);
+        let model = |f: &RgbdFrame, cfg: RgbdPersonConfig| {
+            let mut t = RgbdPersonTracker::new(cfg).unwrap();
+            t.init(Stamp::from_frame(0, 0.1), f, b).unwrap();
+            t.template().unwrap().clone()
+        };
+        let a = model(&frame(noise), RgbdPersonConfig::paper());
+        let g = model(
+            &frame(vec![100u8; 640 * 480 * 3]),
+            RgbdPersonConfig::paper(),
+        );
+        let same = template_drift(&a, &a).unwrap().unwrap();
+        assert!((same - 1.0).abs() < 1e-6, "{same}");
+        let other = template_drift(&a, &g).unwrap().unwrap();
+        assert!(other < 0.9, "{other}");
+        // a template of another grid is refused
+        let mut c = RgbdPersonConfig::paper();
+        c.model.n = 3;
+        let small = model(&frame(vec![100u8; 640 * 480 * 3]), c);
+        assert!(template_drift(&a, &small).is_err());
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// §6.1.12: projection and back-projection round-trip.
