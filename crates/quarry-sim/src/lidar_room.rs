@@ -31,6 +31,10 @@
 //! - `per_beam_timing` is not modelled: all beams of a scan see the world at its capture time.
 //! - A walker whose next step would bring its centre within 0.3 m of an obstacle (or 0.6 m of
 //!   another person) does not take it, and picks a new waypoint after 0.5 s blocked.
+//! - `side_by_side` walks its two people 0.65 m apart centre to centre (the avoidance distance
+//!   is 0.6 m); `door` scripts visitors in from the corridor and out again ([`Visit`]), letting
+//!   nobody in while someone is on the way out; `stop_and_go` pauses U(0, 3) s at every
+//!   waypoint ([`Motion::StopAndGo`]).
 
 use crate::SimError;
 use quarry_core::rng::{SeededRng, stream};
