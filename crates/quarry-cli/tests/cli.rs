@@ -169,3 +169,44 @@ fn help_teaches() {
     let (_, stdout, _) = quarry(&["demo", "--help"]);
     assert!(stdout.contains("EXAMPLE") && stdout.contains("--json"));
 }
+
+#[test]
+fn lidar_scenario_runs_a_named_simulator_scenario() {
+    // door seed 1, 1640 frames (7-89 s), kf-gnn: measured 1508/1640 successful frames
+    // (91.95 %), MOTA 0.961; the crates/quarry-trackers scenario test checks the same run
+    let (code, stdout, stderr) = quarry(&[
+        "lidar",
+        "--scenario",
+        "door",
+        "--frames",
+        "1640",
+        "--preset",
+        "kf-gnn",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "stderr: {stderr}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["scenario"], "door");
+    assert_eq!(v["band"], "mid");
+    assert_eq!(v["frames"], 1640);
+    assert!(v["success_rate"].as_f64().unwrap() > 0.85, "{v}");
+    assert!(v["mota"].as_f64().unwrap() > 0.9, "{v}");
+    // more frames than the scenario has: scored to its end (60 s: 1060 frames from 7 s)
+    let (code, stdout, _) = quarry(&[
+        "lidar",
+        "--scenario",
+        "side_by_side",
+        "--frames",
+        "5000",
+        "--json",
+    ]);
+    assert_eq!(code, 0);
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["scenario"], "side_by_side");
+    assert_eq!(v["frames"], 1060, "60 s scenario, frames from 7 s");
+    let (code, _, stderr) = quarry(&["lidar", "--scenario", "doors"]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("unknown scenario name"), "{stderr}");
+    let (_, stdout, _) = quarry(&["lidar", "--help"]);
+    assert!(stdout.contains("--scenario") && stdout.contains("stop_and_go"));
+}

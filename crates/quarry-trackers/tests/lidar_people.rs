@@ -269,3 +269,299 @@ fn band_mid_network_and_clock_variants() {
         wifi - skewed
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// side_by_side, door, stop_and_go (spec §5 scenarios; §8 gives no criteria for them, the
+// thresholds below are what was measured, with a margin: docs/lidar-people.md)
+// ---------------------------------------------------------------------------------------------
+
+/// `frames` evaluated frames of scenario `sc` from t = 7 s, for `preset`: the run and its
+/// metrics.
+fn run_window(
+    sc: Scenario,
+    preset: Preset,
+    frames: usize,
+) -> (
+    Vec<quarry_trackers::lidar_people::EvalFrame>,
+    Paper003Metrics,
+) {
+    let cfg = LidarPeopleConfig::preset(preset);
+    let run = run_room_default(sc, &cfg, &mut |_| {}).unwrap();
+    let w = run.eval_window(TimeUs(7_000_000), frames);
+    assert_eq!(w.len(), frames);
+    let m = evaluate_paper003(&w, &gate_of(&cfg), cfg.min_num_point, cfg.d_match).unwrap();
+    (w, m)
+}
+
+fn print(name: &str, preset: Preset, m: &Paper003Metrics) {
+    eprintln!(
+        "{name} {preset:?}: success {:.3} det {:.3} strict {:.3} loc {:.3} p95 {:.3} mota {:.3} idf1 {:.3} hota {:.3} idsw {} fp {} fn {} gt {}",
+        m.success_rate(),
+        m.success_rate_detectable(),
+        m.strict_rate(),
+        m.loc.mean,
+        m.loc.p95,
+        m.mota,
+        m.idf1,
+        m.hota,
+        m.idsw,
+        m.fp,
+        m.fn_,
+        m.gt_total
+    );
+}
+
+/// Per GT person: (first frame time, last frame time) in the window; per track id likewise,
+/// with the GT person it is matched to (within d_match) most often, if any.
+#[allow(clippy::type_complexity)]
+fn lifetimes(
+    w: &[quarry_trackers::lidar_people::EvalFrame],
+) -> (
+    std::collections::BTreeMap<u32, (f64, f64)>,
+    std::collections::BTreeMap<u32, (f64, f64, Option<u32>)>,
+) {
+    use quarry_trackers::lidar_people::match_within;
+    let mut gt: std::collections::BTreeMap<u32, (f64, f64)> = Default::default();
+    let mut tr: std::collections::BTreeMap<u32, (f64, f64)> = Default::default();
+    let mut votes: std::collections::BTreeMap<u32, std::collections::BTreeMap<u32, usize>> =
+        Default::default();
+    for f in w {
+        let t = f.t.0 as f64 * 1e-6;
+        for (id, _, _) in &f.gt {
+            gt.entry(*id).or_insert((t, t)).1 = t;
+        }
+        for (id, _) in &f.tracks {
+            tr.entry(*id).or_insert((t, t)).1 = t;
+        }
+        let g: Vec<[f64; 2]> = f.gt.iter().map(|p| p.1).collect();
+        let r: Vec<[f64; 2]> = f.tracks.iter().map(|p| p.1).collect();
+        for (i, j, _) in match_within(&g, &r, 0.5).unwrap() {
+            *votes
+                .entry(f.tracks[j].0)
+                .or_default()
+                .entry(f.gt[i].0)
+                .or_default() += 1;
+        }
+    }
+    let tracks = tr
+        .into_iter()
+        .map(|(id, (a, b))| {
+            let who = votes
+                .get(&id)
+                .and_then(|v| v.iter().max_by_key(|(_, n)| **n).map(|(g, _)| *g));
+            (id, (a, b, who))
+        })
+        .collect();
+    (gt, tracks)
+}
+
+/// The `side_by_side` checks of one seed (7-59 s, 1040 frames).
+fn side_by_side(seed: u64) {
+    // two walkers abreast 0.65 m apart (centres), back and forth at 1 m/s
+    let (_, f) = run_window(Scenario::side_by_side(seed), Preset::Faithful, 1040);
+    print(&format!("side_by_side seed {seed}"), Preset::Faithful, &f);
+    let (_, k) = run_window(Scenario::side_by_side(seed), Preset::KfGnn, 1040);
+    print(&format!("side_by_side seed {seed}"), Preset::KfGnn, &k);
+    // measured (seeds 1, 2): faithful success 98.4 / 92.8 %, MOTA 0.992 / 0.963, IDSW 1 / 5;
+    // kf-gnn success 100 / 100 %, MOTA 1.000 / 1.000, IDSW 0 / 0, IDF1 1.000 / 1.000
+    for m in [&f, &k] {
+        assert!(
+            m.loc.mean < 0.05,
+            "seed {seed}: localisation {}",
+            m.loc.mean
+        );
+        assert!(m.mota > 0.93, "seed {seed}: MOTA {}", m.mota);
+    }
+    assert!(
+        f.success_rate() > 0.9,
+        "seed {seed}: faithful success {}",
+        f.success_rate()
+    );
+    assert!(
+        k.success_rate() > 0.97,
+        "seed {seed}: kf-gnn success {}",
+        k.success_rate()
+    );
+    assert!(k.idsw <= 1, "seed {seed}: kf-gnn IDSW {}", k.idsw);
+    assert!(k.idf1 > 0.95, "seed {seed}: kf-gnn IDF1 {}", k.idf1);
+}
+
+#[test]
+fn side_by_side_seed_1() {
+    side_by_side(1);
+}
+
+#[test]
+#[ignore = "second seed of side_by_side (run in release)"]
+fn side_by_side_seed_2() {
+    side_by_side(2);
+}
+
+/// The `door` checks of one seed (7-89 s, 1640 frames): births and deaths follow the people.
+fn door(seed: u64) {
+    // five visitors, each born in the corridor at (11.5, 4), in through the door, 10-14 s of
+    // waypoints, out again and gone; the last ~15 s are an empty room
+    for preset in [Preset::Faithful, Preset::KfGnn] {
+        let (w, m) = run_window(Scenario::door(seed), preset, 1640);
+        print(&format!("door seed {seed}"), preset, &m);
+        let (gt, tracks) = lifetimes(&w);
+        assert_eq!(gt.len(), 5);
+        for (id, (b, d)) in &gt {
+            let mine: Vec<_> = tracks.values().filter(|v| v.2 == Some(*id)).collect();
+            let first = mine.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
+            let last = mine.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max);
+            eprintln!(
+                "  person {id}: in {b:.2}-{d:.2} s; {} track ids, first {first:.2} s ({:+.2} s), last {last:.2} s ({:+.2} s)",
+                mine.len(),
+                first - b,
+                last - d
+            );
+            // born with the person (measured +0.00-0.75 s: the corridor behind the door is
+            // seen through the gap) and gone with them (measured 0.25-0.80 s *before* the GT
+            // death: the last 0.5 m of the way out are hidden by the door jambs)
+            assert!(
+                first - b <= 1.5,
+                "seed {seed} {preset:?}: person {id} tracked {:.2} s after birth",
+                first - b
+            );
+            assert!(
+                last - d <= 1.0,
+                "seed {seed} {preset:?}: a track of person {id} lived {:.2} s after they left",
+                last - d
+            );
+        }
+        // tracks matched to nobody are short (measured: at most 0.6 s)
+        for (tid, (a, b, _)) in tracks.iter().filter(|(_, v)| v.2.is_none()) {
+            assert!(
+                b - a <= 1.0,
+                "seed {seed} {preset:?}: false track {tid} lived {a:.2}-{b:.2} s"
+            );
+        }
+        // the empty room after the last visitor left has no tracks (measured: none)
+        let last_death = gt.values().map(|v| v.1).fold(0.0, f64::max);
+        let late: usize = w
+            .iter()
+            .filter(|f| f.t.0 as f64 * 1e-6 > last_death + 1.0)
+            .map(|f| f.tracks.len())
+            .sum();
+        assert_eq!(
+            late, 0,
+            "seed {seed} {preset:?}: track rows after {last_death:.2} s + 1 s"
+        );
+        // measured (seeds 1, 2): faithful success 92.9 / 90.5 %, MOTA 0.966 / 0.931; kf-gnn
+        // 92.0 / 91.3 %, MOTA 0.961 / 0.930
+        assert!(
+            m.success_rate() > 0.85,
+            "seed {seed} {preset:?}: success {}",
+            m.success_rate()
+        );
+        assert!(m.mota > 0.9, "seed {seed} {preset:?}: MOTA {}", m.mota);
+        assert!(
+            m.loc.mean < 0.06,
+            "seed {seed} {preset:?}: localisation {}",
+            m.loc.mean
+        );
+    }
+}
+
+#[test]
+fn door_seed_1() {
+    door(1);
+}
+
+#[test]
+#[ignore = "second seed of door (run in release)"]
+fn door_seed_2() {
+    door(2);
+}
+
+/// The `stop_and_go` checks of one seed (7-59 s, 1040 frames), and what happens to a person
+/// standing still: frames (total, without a track within 0.5 m) by how long they had stood,
+/// in 0.25 s bins up to 3 s.
+fn stop_and_go(seed: u64, preset: Preset) -> (Paper003Metrics, Vec<(usize, usize)>) {
+    let (w, m) = run_window(Scenario::stop_and_go(seed), preset, 1040);
+    print(&format!("stop_and_go seed {seed}"), preset, &m);
+    let gt_speed: std::collections::HashMap<(i64, u32), f64> =
+        quarry_sim::lidar_room::Runner::new(Scenario::stop_and_go(seed))
+            .unwrap()
+            .filter_map(|e| match e {
+                quarry_sim::lidar_room::RoomEvent::Frame(f) => Some(f),
+                quarry_sim::lidar_room::RoomEvent::Scan(_) => None,
+            })
+            .flat_map(|f| f.people.into_iter().map(move |p| ((f.t.0, p.id), p.speed)))
+            .collect();
+    let mut stood: std::collections::HashMap<u32, usize> = Default::default();
+    let mut bins = vec![(0usize, 0usize); 13];
+    for f in &w {
+        for (id, p, _) in &f.gt {
+            let still = gt_speed.get(&(f.t.0, *id)).copied() == Some(0.0);
+            let s = stood.entry(*id).or_default();
+            *s = if still { *s + 1 } else { 0 };
+            if still {
+                // frames stood so far -> seconds -> 0.25 s bin (the last bin: 3 s and more)
+                let bin = ((*s - 1) / 5).min(12);
+                let seen = f
+                    .tracks
+                    .iter()
+                    .any(|(_, q)| (q[0] - p[0]).hypot(q[1] - p[1]) <= 0.5);
+                bins[bin].0 += 1;
+                bins[bin].1 += usize::from(!seen);
+            }
+        }
+    }
+    let line: Vec<String> = bins
+        .iter()
+        .enumerate()
+        .map(|(i, (n, miss))| format!("{:.2}s:{miss}/{n}", i as f64 * 0.25))
+        .collect();
+    eprintln!(
+        "  standing frames without a track, by time stood: {}",
+        line.join(" ")
+    );
+    (m, bins)
+}
+
+#[test]
+fn stop_and_go_seed_1_both_presets() {
+    for preset in [Preset::Faithful, Preset::KfGnn] {
+        let (m, bins) = stop_and_go(1, preset);
+        let frac = |r: std::ops::Range<usize>| {
+            let (n, miss) = bins[r].iter().fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+            miss as f64 / n.max(1) as f64
+        };
+        let short = frac(0..3);
+        let long = frac(5..12);
+        eprintln!("  missed while standing < 0.75 s: {short:.3}; 1.25-3 s: {long:.3}");
+        // a person who stops for less than 0.75 s keeps their track (measured: 0 of 385 such
+        // frames missed, both presets)
+        assert!(
+            short < 0.02,
+            "{preset:?}: {short} of the short-stop frames missed"
+        );
+        // Known limitation, not a goal: a person standing still for about the 1 s window
+        // (m = 40 scans) matches the window mean, passes the 90 % test and is labelled static
+        // (spec A4; T_relearn only governs when b_n is overwritten), so the track is lost from
+        // 0.75-1 s of standing until they walk again (measured 75 % / 78 % of the frames after
+        // 1.25 s of standing missed, faithful / kf-gnn). If this starts failing, the
+        // background model changed: update docs/lidar-people.md.
+        assert!(
+            long > 0.5,
+            "{preset:?}: only {long} of the long-stop frames missed"
+        );
+        assert!(m.loc.mean < 0.05, "{preset:?}: localisation {}", m.loc.mean);
+        assert!(m.mota > 0.8, "{preset:?}: MOTA {}", m.mota);
+        assert!(
+            m.success_rate() > 0.55,
+            "{preset:?}: success {}",
+            m.success_rate()
+        );
+    }
+}
+
+#[test]
+#[ignore = "second seed of stop_and_go (run in release)"]
+fn stop_and_go_seed_2_report() {
+    for preset in [Preset::Faithful, Preset::KfGnn] {
+        stop_and_go(2, preset);
+    }
+}
