@@ -201,9 +201,23 @@ pub fn calibrate_backgrounds(
                 .map_or_else(|| format!("sensor {}", sensor.0), scanner_label),
             _ => "(registration of the background set)".to_string(),
         };
+        let reason = match &e {
+            CloudError::CalibrationInsufficient {
+                overlap,
+                min_overlap,
+                rms,
+                max_rms,
+                ..
+            } => format!(
+                "ICP of its background from the rough pose ends with overlap {overlap:.3} \
+                 (need >= {min_overlap}) and inlier RMS {rms:.4} m (need <= {max_rms}); \
+                 the rough pose must be within about 0.5 m and 15° of the truth"
+            ),
+            other => other.to_string(),
+        };
         TrackerError::Calibration {
             scanner,
-            reason: e.to_string(),
+            reason,
             cloud: Some(e),
         }
     })?;
