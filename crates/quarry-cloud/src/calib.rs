@@ -100,6 +100,92 @@ pub fn background_points(
         .collect())
 }
 
+/// The result of [`free_space_violations`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FreeSpaceCheck {
+    /// Points that fall on a beam of the scanner with known background ranges.
+    pub in_view: usize,
+    /// Of those, points lying in the free space the scanner saw through (closer than its
+    /// background range by more than the margin).
+    pub violations: usize,
+}
+
+impl FreeSpaceCheck {
+    /// `violations / in_view` (0 when nothing is in view).
+    pub fn fraction(&self) -> f64 {
+        if self.in_view == 0 {
+            0.0
+        } else {
+            self.violations as f64 / self.in_view as f64
+        }
+    }
+
+    /// The sum of two checks.
+    pub fn add(self, other: Self) -> Self {
+        Self {
+            in_view: self.in_view + other.in_view,
+            violations: self.violations + other.violations,
+        }
+    }
+}
+
+/// Free-space consistency of a scanner pose (a check added to spec 003 §2.3 step 4): static
+/// points `points` (world frame, e.g. the other scanners' backgrounds under their calibrated
+/// poses) must not lie in the space the scanner at `pose` saw through. A point falls on beam `n`
+/// of `geometry` when its bearing rounds to it; it is *in view* when the background ranges
+/// `b_{n−1}, b_n, b_{n+1}` are all known and its range is at least `range_min`, and a
+/// *violation* when it is closer than `min(b_{n−1}, b_n, b_{n+1}) − margin` (the neighbours
+/// absorb the bearing quantisation at depth edges). A wrong registration that still overlaps
+/// (e.g. a scanner slid along a wall) puts many points into free space; the true pose puts
+/// none there.
+pub fn free_space_violations(
+    points: &[Point2],
+    pose: &Pose2,
+    background: &[Option<f64>],
+    geometry: &ScanGeometry,
+    margin: f64,
+) -> Result<FreeSpaceCheck> {
+    geometry.validate()?;
+    quarry_core::ensure_len(
+        background.len(),
+        geometry.n_beams as usize,
+        "background beams",
+    )?;
+    if !pose.is_finite() {
+        return Err(CoreError::NonFinite {
+            what: "scanner pose",
+        }
+        .into());
+    }
+    if !(margin.is_finite() && margin >= 0.0) {
+        return Err(CoreError::invalid("margin", "must be finite and >= 0").into());
+    }
+    quarry_core::ensure_finite(points.iter().flat_map(|p| [&p.x, &p.y]), "points")?;
+    let n_beams = background.len();
+    let mut out = FreeSpaceCheck::default();
+    for p in points {
+        let q = pose.apply_inverse(p);
+        let r = q.x.hypot(q.y);
+        if r < geometry.range_min {
+            continue;
+        }
+        let k = ((q.y.atan2(q.x) - geometry.angle_min) / geometry.angle_increment).round();
+        if !(k >= 1.0 && k < (n_beams - 1) as f64) {
+            continue;
+        }
+        let n = k as usize;
+        let (Some(a), Some(b), Some(c)) = (background[n - 1], background[n], background[n + 1])
+        else {
+            continue;
+        };
+        out.in_view += 1;
+        if r < a.min(b).min(c) - margin {
+            out.violations += 1;
+        }
+    }
+    Ok(out)
+}
+
 /// Poses straight from the configuration (`calibration = given`).
 pub fn given_poses(poses: &[(SensorId, Pose2)]) -> Result<BTreeMap<SensorId, Pose2>> {
     let mut out = BTreeMap::new();
@@ -481,6 +567,38 @@ mod tests {
             );
             assert!(overlap > 0.99 && rms < 1e-3);
         }
+    }
+
+    #[test]
+    fn free_space_check_flags_a_slid_scanner() {
+        let g = ScanGeometry::utm30lx();
+        let a = Pose2::new(0.25, 0.25, 45f64.to_radians());
+        let c = Pose2::new(5.0, 7.75, -90f64.to_radians());
+        let bg_a = cast(&a, &g);
+        let bg_c = cast(&c, &g);
+        let pts_c: Vec<Point2> = background_points(&bg_c, &g, 28.5)
+            .unwrap()
+            .iter()
+            .map(|p| c.apply(p))
+            .collect();
+        // the true poses: C's background is consistent with what A saw through
+        let ok = free_space_violations(&pts_c, &a, &bg_a, &g, 0.15).unwrap();
+        assert!(ok.in_view > 100 && ok.fraction() < 0.01, "{ok:?}");
+        // C slid 2 m along the north wall: its points enter A's free space
+        let slid = Pose2::new(3.0, 7.75, c.theta);
+        let pts_slid: Vec<Point2> = background_points(&bg_c, &g, 28.5)
+            .unwrap()
+            .iter()
+            .map(|p| slid.apply(p))
+            .collect();
+        let bad = free_space_violations(&pts_slid, &a, &bg_a, &g, 0.15).unwrap();
+        assert!(bad.fraction() > 0.1, "{bad:?}");
+        assert_eq!(ok.add(bad).in_view, ok.in_view + bad.in_view);
+        assert_eq!(FreeSpaceCheck::default().fraction(), 0.0);
+        assert!(free_space_violations(&pts_c, &a, &bg_a[1..], &g, 0.15).is_err());
+        assert!(free_space_violations(&pts_c, &a, &bg_a, &g, f64::NAN).is_err());
+        let nan = [Point2::new(f64::NAN, 0.0)];
+        assert!(free_space_violations(&nan, &a, &bg_a, &g, 0.1).is_err());
     }
 
     #[test]

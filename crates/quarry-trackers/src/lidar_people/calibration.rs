@@ -7,7 +7,11 @@
 //! configured pose, the others are registered in order of decreasing overlap against the union
 //! of the backgrounds calibrated so far (trimmed ICP, distance schedule 1.0 / 0.5 / 0.25 /
 //! 0.10 m, point-to-line pairs as §2.3 allows), and each is accepted only with overlap ≥ 0.3
-//! and inlier RMS ≤ 0.03 m. A scanner that cannot be calibrated is a
+//! and inlier RMS ≤ 0.03 m. Those bounds alone accept some wrong registrations (a scanner slid
+//! metres along a wall still overlaps 35–60 % with a low RMS), so the calibrated poses must
+//! also be free-space consistent: at most `calib_max_free_space_violation` (2 %) of the other
+//! scanners' background points may lie in the space a scanner saw through
+//! ([`free_space_violations`]). A scanner that cannot be calibrated is a
 //! [`TrackerError::Calibration`] naming it, never a silent fall-back to its rough pose.
 //!
 //! In the simulator the rough ("hand-measured") poses are the true poses moved by a seeded draw
@@ -19,7 +23,10 @@ use super::config::{Calibration, LidarPeopleConfig};
 use super::{ClientPipeline, background_of};
 use crate::TrackerError;
 use quarry_cloud::CloudError;
-use quarry_cloud::calib::{CalibConfig, ScannerBackground, background_points, calibrate};
+use quarry_cloud::calib::{
+    CalibConfig, CalibResult, FreeSpaceCheck, ScannerBackground, background_points, calibrate,
+    free_space_violations,
+};
 use quarry_core::{BackgroundModel, Pose2, SensorId, TimeUs, wrap_angle};
 use quarry_sim::lidar_room::{RoomEvent, Runner, ScannerSim, Scenario};
 use serde::Serialize;
@@ -45,6 +52,14 @@ pub struct ScannerCalibration {
     pub overlap: f64,
     /// Trimmed inlier RMS, metres (0 for the reference).
     pub rms_m: f64,
+    /// Free-space violations: the fraction of the other scanners' background points (in view)
+    /// that lie in space this scanner saw through, and of its points in the others' free
+    /// space, under the calibrated poses ([`free_space_violations`], margin
+    /// [`FREE_SPACE_MARGIN_M`]).
+    pub free_space_violation: f64,
+    /// Extra ICP starts around the rough pose that were needed (0: the rough pose itself
+    /// converged and passed the checks).
+    pub extra_starts: usize,
     /// Position error of the calibrated pose, metres.
     pub pos_error_m: f64,
     /// Orientation error of the calibrated pose, degrees (absolute, wrapped).
@@ -82,6 +97,10 @@ impl CalibrationReport {
             .collect()
     }
 }
+
+/// Margin of the free-space check, metres: a point counts as seen through only if it is this
+/// much closer than the scanner's background range (5× the 3 cm far-range noise).
+pub const FREE_SPACE_MARGIN_M: f64 = 0.15;
 
 fn scanner_label(s: &ScannerSim) -> String {
     format!("{} (sensor {})", s.name, s.id.0)
@@ -186,52 +205,36 @@ pub fn calibrate_backgrounds(
             pose: *p,
         });
     }
-    let reference = sets[r].clone();
-    let others: Vec<ScannerBackground> = sets
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| *i != r)
-        .map(|(_, s)| s.clone())
-        .collect();
-    let results = calibrate(&cc, &reference, &others).map_err(|e| {
-        let scanner = match &e {
-            CloudError::CalibrationInsufficient { sensor, .. } => scanners
-                .iter()
-                .find(|s| s.id == *sensor)
-                .map_or_else(|| format!("sensor {}", sensor.0), scanner_label),
-            _ => "(registration of the background set)".to_string(),
-        };
-        let reason = match &e {
-            CloudError::CalibrationInsufficient {
-                overlap,
-                min_overlap,
-                rms,
-                max_rms,
-                ..
-            } => format!(
-                "ICP of its background from the rough pose ends with overlap {overlap:.3} \
-                 (need >= {min_overlap}) and inlier RMS {rms:.4} m (need <= {max_rms}); \
-                 the rough pose must be within about 0.5 m and 15° of the truth"
-            ),
-            other => other.to_string(),
-        };
-        TrackerError::Calibration {
-            scanner,
-            reason,
-            cloud: Some(e),
+    let mut tried = vec![0usize; scanners.len()];
+    let mut first_err: Option<TrackerError> = None;
+    let (results, calibrated, free) = loop {
+        match attempt(scanners, &sets, backgrounds, r, cfg, &cc) {
+            Ok(x) => break x,
+            Err((Some(k), e)) if k != r && tried[k] < EXTRA_STARTS.len() => {
+                // another start around the rough pose of the scanner that failed
+                let (dx, dy, dth) = EXTRA_STARTS[tried[k]];
+                tried[k] += 1;
+                let p = rough[k];
+                sets[k].pose = Pose2::new(p.x + dx, p.y + dy, p.theta + dth.to_radians());
+                first_err.get_or_insert(e);
+            }
+            Err((_, e)) => {
+                let n: usize = tried.iter().sum();
+                let mut e = first_err.unwrap_or(e);
+                if let TrackerError::Calibration { reason, .. } = &mut e
+                    && n > 0
+                {
+                    reason.push_str(&format!(
+                        " (and {n} further starts around the rough poses failed too)"
+                    ));
+                }
+                return Err(e);
+            }
         }
-    })?;
+    };
     let mut out = Vec::with_capacity(scanners.len());
     for (i, ((s, set), p)) in scanners.iter().zip(&sets).zip(rough).enumerate() {
-        let res =
-            results
-                .iter()
-                .find(|x| x.sensor == s.id)
-                .ok_or_else(|| TrackerError::Calibration {
-                    scanner: scanner_label(s),
-                    reason: "no result from the registration".into(),
-                    cloud: None,
-                })?;
+        let res = &calibrated[i];
         let (pe, re) = pose_error(&res.pose, &s.pose);
         let (rpe, rre) = pose_error(p, &s.pose);
         out.push(ScannerCalibration {
@@ -244,6 +247,8 @@ pub fn calibrate_backgrounds(
             background_points: set.points.len(),
             overlap: res.overlap,
             rms_m: res.rms,
+            free_space_violation: free[i].fraction(),
+            extra_starts: tried[i],
             pos_error_m: pe,
             rot_error_deg: re,
             rough_pos_error_m: rpe,
@@ -371,4 +376,151 @@ pub fn calibrate_scenario(
         "the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)"
             .into(),
     ))
+}
+
+/// Extra ICP starts `(dx m, dy m, dθ degrees)` around a scanner's rough pose, tried in this
+/// order when its registration is refused (a choice beyond §2.3; every result still passes the
+/// same acceptance and free-space checks).
+const EXTRA_STARTS: [(f64, f64, f64); 10] = [
+    (0.0, 0.0, 5.0),
+    (0.0, 0.0, -5.0),
+    (0.0, 0.0, 10.0),
+    (0.0, 0.0, -10.0),
+    (0.0, 0.0, 15.0),
+    (0.0, 0.0, -15.0),
+    (0.25, 0.0, 0.0),
+    (-0.25, 0.0, 0.0),
+    (0.0, 0.25, 0.0),
+    (0.0, -0.25, 0.0),
+];
+
+/// Results in calibration order, the same in scenario order, free-space checks per scanner.
+type Attempt = (Vec<CalibResult>, Vec<CalibResult>, Vec<FreeSpaceCheck>);
+
+/// One calibration of every scanner from the poses in `sets`, with the acceptance and
+/// free-space checks; on failure, the index of the scanner to blame (if known) and the error.
+fn attempt(
+    scanners: &[ScannerSim],
+    sets: &[ScannerBackground],
+    backgrounds: &[&[Option<f64>]],
+    r: usize,
+    cfg: &LidarPeopleConfig,
+    cc: &CalibConfig,
+) -> Result<Attempt, (Option<usize>, TrackerError)> {
+    let index_of = |id: SensorId| scanners.iter().position(|s| s.id == id);
+    let reference = sets[r].clone();
+    let others: Vec<ScannerBackground> = sets
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != r)
+        .map(|(_, s)| s.clone())
+        .collect();
+    let results = calibrate(cc, &reference, &others).map_err(|e| {
+        let blamed = match &e {
+            CloudError::CalibrationInsufficient { sensor, .. } => index_of(*sensor),
+            _ => None,
+        };
+        let scanner = match &e {
+            CloudError::CalibrationInsufficient { sensor, .. } => scanners
+                .iter()
+                .find(|s| s.id == *sensor)
+                .map_or_else(|| format!("sensor {}", sensor.0), scanner_label),
+            _ => "(registration of the background set)".to_string(),
+        };
+        let reason = match &e {
+            CloudError::CalibrationInsufficient {
+                overlap,
+                min_overlap,
+                rms,
+                max_rms,
+                ..
+            } => format!(
+                "ICP of its background from the rough pose ends with overlap {overlap:.3} \
+                 (need >= {min_overlap}) and inlier RMS {rms:.4} m (need <= {max_rms}); \
+                 the rough pose must be within about 0.5 m and 15° of the truth"
+            ),
+            other => other.to_string(),
+        };
+        (
+            blamed,
+            TrackerError::Calibration {
+                scanner,
+                reason,
+                cloud: Some(e),
+            },
+        )
+    })?;
+    let mut calibrated = Vec::with_capacity(scanners.len());
+    for s in scanners {
+        let res = results.iter().find(|x| x.sensor == s.id).ok_or_else(|| {
+            (
+                None,
+                TrackerError::Calibration {
+                    scanner: scanner_label(s),
+                    reason: "no result from the registration".into(),
+                    cloud: None,
+                },
+            )
+        })?;
+        calibrated.push(*res);
+    }
+    // free-space consistency of every scanner with every other one, under the calibrated poses
+    let world: Vec<Vec<quarry_core::Point2>> = sets
+        .iter()
+        .zip(&calibrated)
+        .map(|(set, res)| set.points.iter().map(|q| res.pose.apply(q)).collect())
+        .collect();
+    let mut free = vec![FreeSpaceCheck::default(); scanners.len()];
+    for (i, s) in scanners.iter().enumerate() {
+        for (j, o) in scanners.iter().enumerate() {
+            if i == j {
+                continue;
+            }
+            let c = free_space_violations(
+                &world[j],
+                &calibrated[i].pose,
+                backgrounds[i],
+                &s.geometry,
+                FREE_SPACE_MARGIN_M,
+            )
+            .map_err(|e| {
+                (
+                    None,
+                    TrackerError::Calibration {
+                        scanner: scanner_label(s),
+                        reason: format!("free-space check against {}: {e}", scanner_label(o)),
+                        cloud: Some(e),
+                    },
+                )
+            })?;
+            free[i] = free[i].add(c);
+            free[j] = free[j].add(c);
+        }
+    }
+    // blame the non-reference scanner with the most violations
+    if let Some((i, f)) = free
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != r)
+        .map(|(i, f)| (i, f.fraction()))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        && f > cfg.calib_max_free_space_violation
+    {
+        return Err((
+            Some(i),
+            TrackerError::Calibration {
+                scanner: scanner_label(&scanners[i]),
+                reason: format!(
+                    "ICP converged to a pose inconsistent with the other scanners: {:.1} % of the \
+                 background points in view lie in space one of them saw through (allowed {:.1} %, \
+                 calib_max_free_space_violation); the rough pose must be within about 0.5 m and \
+                 15° of the truth",
+                    100.0 * f,
+                    100.0 * cfg.calib_max_free_space_violation
+                ),
+                cloud: None,
+            },
+        ));
+    }
+    Ok((results, calibrated, free))
 }

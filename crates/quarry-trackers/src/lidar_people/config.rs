@@ -197,6 +197,12 @@ pub struct LidarPeopleConfig {
     /// scenario's order, instead of the seeded draw; the reference's entry is its exact pose.
     /// Empty (default): the seeded draw.
     pub calib_rough_poses: Vec<[f64; 3]>,
+    /// `icp`: refuse the calibration when, under the calibrated poses, more than this fraction
+    /// of the background points of the other scanners lie in the free space a scanner saw
+    /// through (or its points in theirs) [choice: 0.02; an addition to §2.3 step 4, whose overlap
+    /// and RMS bounds accept scanners slid along a wall; measured 0 at every correct
+    /// calibration, ≥ 0.07 at every wrong one, docs/lidar-people.md].
+    pub calib_max_free_space_violation: f64,
 }
 
 impl Default for LidarPeopleConfig {
@@ -255,6 +261,7 @@ impl LidarPeopleConfig {
             calib_max_shift_m: 0.3,
             calib_max_rot_deg: 10.0,
             calib_rough_poses: Vec::new(),
+            calib_max_free_space_violation: 0.02,
         }
     }
 
@@ -360,6 +367,10 @@ impl LidarPeopleConfig {
         for (name, v) in [
             ("calib_max_shift_m", self.calib_max_shift_m),
             ("calib_max_rot_deg", self.calib_max_rot_deg),
+            (
+                "calib_max_free_space_violation",
+                self.calib_max_free_space_violation,
+            ),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(TrackerError::Config(format!(
