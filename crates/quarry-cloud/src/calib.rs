@@ -121,7 +121,7 @@ impl FreeSpaceCheck {
     }
 
     /// The sum of two checks.
-    pub fn add(self, other: Self) -> Self {
+    pub fn merged(self, other: Self) -> Self {
         Self {
             in_view: self.in_view + other.in_view,
             violations: self.violations + other.violations,
@@ -593,7 +593,7 @@ mod tests {
             .collect();
         let bad = free_space_violations(&pts_slid, &a, &bg_a, &g, 0.15).unwrap();
         assert!(bad.fraction() > 0.1, "{bad:?}");
-        assert_eq!(ok.add(bad).in_view, ok.in_view + bad.in_view);
+        assert_eq!(ok.merged(bad).in_view, ok.in_view + bad.in_view);
         assert_eq!(FreeSpaceCheck::default().fraction(), 0.0);
         assert!(free_space_violations(&pts_c, &a, &bg_a[1..], &g, 0.15).is_err());
         assert!(free_space_violations(&pts_c, &a, &bg_a, &g, f64::NAN).is_err());

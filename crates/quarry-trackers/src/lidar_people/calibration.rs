@@ -30,6 +30,7 @@ use quarry_cloud::calib::{
 use quarry_core::{BackgroundModel, Pose2, SensorId, TimeUs, wrap_angle};
 use quarry_sim::lidar_room::{RoomEvent, Runner, ScannerSim, Scenario};
 use serde::Serialize;
+use std::fmt::Write as _;
 
 /// One scanner's calibration, with its errors against the simulator's true pose.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -224,9 +225,10 @@ pub fn calibrate_backgrounds(
                 if let TrackerError::Calibration { reason, .. } = &mut e
                     && n > 0
                 {
-                    reason.push_str(&format!(
+                    let _ = write!(
+                        reason,
                         " (and {n} further starts around the rough poses failed too)"
-                    ));
+                    );
                 }
                 return Err(e);
             }
@@ -493,8 +495,8 @@ fn attempt(
                     },
                 )
             })?;
-            free[i] = free[i].add(c);
-            free[j] = free[j].add(c);
+            free[i] = free[i].merged(c);
+            free[j] = free[j].merged(c);
         }
     }
     // blame the non-reference scanner with the most violations
