@@ -569,6 +569,56 @@ mod tests {
         }
     }
 
+    fn any_f64() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            4 => -40.0f64..40.0,
+            1 => Just(f64::NAN),
+            1 => Just(f64::INFINITY),
+            1 => Just(f64::NEG_INFINITY),
+            1 => Just(0.0),
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Arbitrary backgrounds, poses, points and margins (NaN, inf, wrong sizes): a result
+        /// or an error, never a panic; counts are consistent.
+        #[test]
+        fn free_space_and_calibration_never_panic(
+            bg in proptest::collection::vec(proptest::option::of(any_f64()), 0..40),
+            pts in proptest::collection::vec((any_f64(), any_f64()), 0..30),
+            pose in (any_f64(), any_f64(), any_f64()),
+            margin in any_f64(),
+        ) {
+            let g = ScanGeometry {
+                n_beams: 32,
+                angle_min: -1.5,
+                angle_increment: 0.1,
+                ..ScanGeometry::utm30lx()
+            };
+            let pose = Pose2 { x: pose.0, y: pose.1, theta: pose.2 };
+            let points: Vec<Point2> = pts.iter().map(|(x, y)| Point2::new(*x, *y)).collect();
+            if let Ok(c) = free_space_violations(&points, &pose, &bg, &g, margin) {
+                proptest::prop_assert!(c.violations <= c.in_view && c.in_view <= points.len());
+                proptest::prop_assert!((0.0..=1.0).contains(&c.fraction()));
+            }
+            let own = background_points(&bg, &g, 28.5);
+            if let Ok(own) = &own {
+                proptest::prop_assert!(own.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
+            }
+            let reference = ScannerBackground { sensor: SensorId(0), points: points.clone(), pose };
+            let other = ScannerBackground {
+                sensor: SensorId(1),
+                points: own.unwrap_or_default(),
+                pose: Pose2::new(0.5, 0.5, 0.3),
+            };
+            if let Ok(res) = calibrate(&CalibConfig::default(), &reference, &[other]) {
+                proptest::prop_assert_eq!(res.len(), 2);
+            }
+        }
+    }
+
     #[test]
     fn free_space_check_flags_a_slid_scanner() {
         let g = ScanGeometry::utm30lx();
