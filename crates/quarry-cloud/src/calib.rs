@@ -37,6 +37,10 @@ pub struct CalibConfig {
     pub max_rms: f64,
     /// Background beams at or beyond this range are not used, metres.
     pub max_background_range: f64,
+    /// Point-to-line pairs with Gauss-Newton steps (Censi 2008; default `true`), or the spec's
+    /// plain point-to-point pairs with the closed-form solve of §2.6 (`false`, kept to measure
+    /// the difference).
+    pub point_to_line: bool,
 }
 
 impl Default for CalibConfig {
@@ -50,6 +54,7 @@ impl Default for CalibConfig {
             min_overlap: 0.3,
             max_rms: 0.03,
             max_background_range: 28.5,
+            point_to_line: true,
         }
     }
 }
@@ -380,9 +385,16 @@ pub fn register_background(
         points.iter().flat_map(|p| [&p.x, &p.y]),
         "background points",
     )?;
-    let tang = tangents(target, index, TANGENT_RADIUS);
+    let tang = if cfg.point_to_line {
+        tangents(target, index, TANGENT_RADIUS)
+    } else {
+        vec![None; target.len()]
+    };
     let mut pose = rough;
-    for &d in &cfg.stages {
+    if !cfg.point_to_line {
+        pose = point_to_point_stages(cfg, points, target, index, rough)?;
+    }
+    for &d in cfg.stages.iter().filter(|_| cfg.point_to_line) {
         let mut prev = f64::INFINITY;
         for _ in 0..cfg.max_iter {
             let mut pairs = correspond_gn(points, &pose, target, &tang, index, d);
@@ -418,6 +430,45 @@ pub fn register_background(
         (fin.iter().map(|r| r * r).sum::<f64>() / fin.len() as f64).sqrt()
     };
     Ok((pose, overlap, rms))
+}
+
+/// The spec's plain trimmed point-to-point ICP (§2.3 step 3): nearest target point within the
+/// stage distance, the best `keep_fraction` of the pairs, the closed-form solve of §2.6.
+fn point_to_point_stages(
+    cfg: &CalibConfig,
+    points: &[Point2],
+    target: &[Point2],
+    index: &KdIndex,
+    rough: Pose2,
+) -> Result<Pose2> {
+    let mut pose = rough;
+    for &d in &cfg.stages {
+        let mut prev = f64::INFINITY;
+        for _ in 0..cfg.max_iter {
+            let mut pairs: Vec<(Point2, Point2, f64)> = points
+                .iter()
+                .filter_map(|p| {
+                    let (j, dist) = index.nearest(&pose.apply(p))?;
+                    (dist <= d).then_some((*p, target[j], dist))
+                })
+                .collect();
+            if pairs.len() < 3 {
+                break;
+            }
+            let keep =
+                ((pairs.len() as f64 * cfg.keep_fraction).ceil() as usize).clamp(3, pairs.len());
+            pairs.sort_by(|a, b| a.2.total_cmp(&b.2));
+            pairs.truncate(keep);
+            let (p, q): (Vec<Point2>, Vec<Point2>) = pairs.iter().map(|x| (x.0, x.1)).unzip();
+            pose = crate::icp::rigid_2d(&p, &q, None, pose.theta)?;
+            let rms = (pairs.iter().map(|x| x.2 * x.2).sum::<f64>() / pairs.len() as f64).sqrt();
+            if (prev - rms).abs() < cfg.delta_stop {
+                break;
+            }
+            prev = rms;
+        }
+    }
+    Ok(pose)
 }
 
 /// Calibrates `others` against `reference` (whose pose is taken as exact). Returns one result per

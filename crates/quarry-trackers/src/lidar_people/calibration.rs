@@ -177,7 +177,10 @@ pub fn calibrate_backgrounds(
         )));
     }
     let r = reference_index(scanners, cfg)?;
-    let cc = CalibConfig::default();
+    let cc = CalibConfig {
+        point_to_line: cfg.calib_point_to_line,
+        ..CalibConfig::default()
+    };
     let mut sets = Vec::with_capacity(scanners.len());
     for ((s, b), p) in scanners.iter().zip(backgrounds).zip(rough) {
         let fail = |reason: String, cloud: Option<CloudError>| TrackerError::Calibration {

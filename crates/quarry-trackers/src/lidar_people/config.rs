@@ -203,6 +203,9 @@ pub struct LidarPeopleConfig {
     /// and RMS bounds accept scanners slid along a wall; measured 0 at every correct
     /// calibration, ≥ 0.07 at every wrong one, docs/lidar-people.md].
     pub calib_max_free_space_violation: f64,
+    /// `icp`: point-to-line registration (Censi 2008, the upgrade §2.3 allows; default `true`)
+    /// or the spec's plain point-to-point ICP with the closed-form solve (`false`).
+    pub calib_point_to_line: bool,
 }
 
 impl Default for LidarPeopleConfig {
@@ -262,6 +265,7 @@ impl LidarPeopleConfig {
             calib_max_rot_deg: 10.0,
             calib_rough_poses: Vec::new(),
             calib_max_free_space_violation: 0.02,
+            calib_point_to_line: true,
         }
     }
 
