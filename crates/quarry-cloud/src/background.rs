@@ -610,6 +610,12 @@ impl BackgroundModel for ChiSquareBackground {
     fn classify(&mut self, scan: &PolarScan) -> Result<Vec<BeamLabel>, CoreError> {
         self.classify_scan(scan).map_err(CoreError::from)
     }
+
+    /// `b_n` once the warm-up is over; `None` while warming and without a long-term
+    /// background (`literal`).
+    fn published_background(&self) -> Option<&[Option<f64>]> {
+        (self.cfg.long_term.is_some() && !self.is_warming()).then_some(&self.background[..])
+    }
 }
 
 /// The per-beam variance-learned one-sided chi-square test of the peer workload

@@ -37,6 +37,10 @@ pub struct CalibConfig {
     pub max_rms: f64,
     /// Background beams at or beyond this range are not used, metres.
     pub max_background_range: f64,
+    /// Point-to-line pairs with Gauss-Newton steps (Censi 2008; default `true`), or the spec's
+    /// plain point-to-point pairs with the closed-form solve of §2.6 (`false`, kept to measure
+    /// the difference).
+    pub point_to_line: bool,
 }
 
 impl Default for CalibConfig {
@@ -50,6 +54,7 @@ impl Default for CalibConfig {
             min_overlap: 0.3,
             max_rms: 0.03,
             max_background_range: 28.5,
+            point_to_line: true,
         }
     }
 }
@@ -98,6 +103,92 @@ pub fn background_points(
                 .flatten()
         })
         .collect())
+}
+
+/// The result of [`free_space_violations`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FreeSpaceCheck {
+    /// Points that fall on a beam of the scanner with known background ranges.
+    pub in_view: usize,
+    /// Of those, points lying in the free space the scanner saw through (closer than its
+    /// background range by more than the margin).
+    pub violations: usize,
+}
+
+impl FreeSpaceCheck {
+    /// `violations / in_view` (0 when nothing is in view).
+    pub fn fraction(&self) -> f64 {
+        if self.in_view == 0 {
+            0.0
+        } else {
+            self.violations as f64 / self.in_view as f64
+        }
+    }
+
+    /// The sum of two checks.
+    pub fn merged(self, other: Self) -> Self {
+        Self {
+            in_view: self.in_view + other.in_view,
+            violations: self.violations + other.violations,
+        }
+    }
+}
+
+/// Free-space consistency of a scanner pose (a check added to spec 003 §2.3 step 4): static
+/// points `points` (world frame, e.g. the other scanners' backgrounds under their calibrated
+/// poses) must not lie in the space the scanner at `pose` saw through. A point falls on beam `n`
+/// of `geometry` when its bearing rounds to it; it is *in view* when the background ranges
+/// `b_{n−1}, b_n, b_{n+1}` are all known and its range is at least `range_min`, and a
+/// *violation* when it is closer than `min(b_{n−1}, b_n, b_{n+1}) − margin` (the neighbours
+/// absorb the bearing quantisation at depth edges). A wrong registration that still overlaps
+/// (e.g. a scanner slid along a wall) puts many points into free space; the true pose puts
+/// none there.
+pub fn free_space_violations(
+    points: &[Point2],
+    pose: &Pose2,
+    background: &[Option<f64>],
+    geometry: &ScanGeometry,
+    margin: f64,
+) -> Result<FreeSpaceCheck> {
+    geometry.validate()?;
+    quarry_core::ensure_len(
+        background.len(),
+        geometry.n_beams as usize,
+        "background beams",
+    )?;
+    if !pose.is_finite() {
+        return Err(CoreError::NonFinite {
+            what: "scanner pose",
+        }
+        .into());
+    }
+    if !(margin.is_finite() && margin >= 0.0) {
+        return Err(CoreError::invalid("margin", "must be finite and >= 0").into());
+    }
+    quarry_core::ensure_finite(points.iter().flat_map(|p| [&p.x, &p.y]), "points")?;
+    let n_beams = background.len();
+    let mut out = FreeSpaceCheck::default();
+    for p in points {
+        let q = pose.apply_inverse(p);
+        let r = q.x.hypot(q.y);
+        if r < geometry.range_min {
+            continue;
+        }
+        let k = ((q.y.atan2(q.x) - geometry.angle_min) / geometry.angle_increment).round();
+        if !(k >= 1.0 && k < (n_beams - 1) as f64) {
+            continue;
+        }
+        let n = k as usize;
+        let (Some(a), Some(b), Some(c)) = (background[n - 1], background[n], background[n + 1])
+        else {
+            continue;
+        };
+        out.in_view += 1;
+        if r < a.min(b).min(c) - margin {
+            out.violations += 1;
+        }
+    }
+    Ok(out)
 }
 
 /// Poses straight from the configuration (`calibration = given`).
@@ -294,9 +385,16 @@ pub fn register_background(
         points.iter().flat_map(|p| [&p.x, &p.y]),
         "background points",
     )?;
-    let tang = tangents(target, index, TANGENT_RADIUS);
+    let tang = if cfg.point_to_line {
+        tangents(target, index, TANGENT_RADIUS)
+    } else {
+        vec![None; target.len()]
+    };
     let mut pose = rough;
-    for &d in &cfg.stages {
+    if !cfg.point_to_line {
+        pose = point_to_point_stages(cfg, points, target, index, rough)?;
+    }
+    for &d in cfg.stages.iter().filter(|_| cfg.point_to_line) {
         let mut prev = f64::INFINITY;
         for _ in 0..cfg.max_iter {
             let mut pairs = correspond_gn(points, &pose, target, &tang, index, d);
@@ -332,6 +430,45 @@ pub fn register_background(
         (fin.iter().map(|r| r * r).sum::<f64>() / fin.len() as f64).sqrt()
     };
     Ok((pose, overlap, rms))
+}
+
+/// The spec's plain trimmed point-to-point ICP (§2.3 step 3): nearest target point within the
+/// stage distance, the best `keep_fraction` of the pairs, the closed-form solve of §2.6.
+fn point_to_point_stages(
+    cfg: &CalibConfig,
+    points: &[Point2],
+    target: &[Point2],
+    index: &KdIndex,
+    rough: Pose2,
+) -> Result<Pose2> {
+    let mut pose = rough;
+    for &d in &cfg.stages {
+        let mut prev = f64::INFINITY;
+        for _ in 0..cfg.max_iter {
+            let mut pairs: Vec<(Point2, Point2, f64)> = points
+                .iter()
+                .filter_map(|p| {
+                    let (j, dist) = index.nearest(&pose.apply(p))?;
+                    (dist <= d).then_some((*p, target[j], dist))
+                })
+                .collect();
+            if pairs.len() < 3 {
+                break;
+            }
+            let keep =
+                ((pairs.len() as f64 * cfg.keep_fraction).ceil() as usize).clamp(3, pairs.len());
+            pairs.sort_by(|a, b| a.2.total_cmp(&b.2));
+            pairs.truncate(keep);
+            let (p, q): (Vec<Point2>, Vec<Point2>) = pairs.iter().map(|x| (x.0, x.1)).unzip();
+            pose = crate::icp::rigid_2d(&p, &q, None, pose.theta)?;
+            let rms = (pairs.iter().map(|x| x.2 * x.2).sum::<f64>() / pairs.len() as f64).sqrt();
+            if (prev - rms).abs() < cfg.delta_stop {
+                break;
+            }
+            prev = rms;
+        }
+    }
+    Ok(pose)
 }
 
 /// Calibrates `others` against `reference` (whose pose is taken as exact). Returns one result per
@@ -481,6 +618,88 @@ mod tests {
             );
             assert!(overlap > 0.99 && rms < 1e-3);
         }
+    }
+
+    fn any_f64() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            4 => -40.0f64..40.0,
+            1 => Just(f64::NAN),
+            1 => Just(f64::INFINITY),
+            1 => Just(f64::NEG_INFINITY),
+            1 => Just(0.0),
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Arbitrary backgrounds, poses, points and margins (NaN, inf, wrong sizes): a result
+        /// or an error, never a panic; counts are consistent.
+        #[test]
+        fn free_space_and_calibration_never_panic(
+            bg in proptest::collection::vec(proptest::option::of(any_f64()), 0..40),
+            pts in proptest::collection::vec((any_f64(), any_f64()), 0..30),
+            pose in (any_f64(), any_f64(), any_f64()),
+            margin in any_f64(),
+        ) {
+            let g = ScanGeometry {
+                n_beams: 32,
+                angle_min: -1.5,
+                angle_increment: 0.1,
+                ..ScanGeometry::utm30lx()
+            };
+            let pose = Pose2 { x: pose.0, y: pose.1, theta: pose.2 };
+            let points: Vec<Point2> = pts.iter().map(|(x, y)| Point2::new(*x, *y)).collect();
+            if let Ok(c) = free_space_violations(&points, &pose, &bg, &g, margin) {
+                proptest::prop_assert!(c.violations <= c.in_view && c.in_view <= points.len());
+                proptest::prop_assert!((0.0..=1.0).contains(&c.fraction()));
+            }
+            let own = background_points(&bg, &g, 28.5);
+            if let Ok(own) = &own {
+                proptest::prop_assert!(own.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
+            }
+            let reference = ScannerBackground { sensor: SensorId(0), points: points.clone(), pose };
+            let other = ScannerBackground {
+                sensor: SensorId(1),
+                points: own.unwrap_or_default(),
+                pose: Pose2::new(0.5, 0.5, 0.3),
+            };
+            if let Ok(res) = calibrate(&CalibConfig::default(), &reference, &[other]) {
+                proptest::prop_assert_eq!(res.len(), 2);
+            }
+        }
+    }
+
+    #[test]
+    fn free_space_check_flags_a_slid_scanner() {
+        let g = ScanGeometry::utm30lx();
+        let a = Pose2::new(0.25, 0.25, 45f64.to_radians());
+        let c = Pose2::new(5.0, 7.75, -90f64.to_radians());
+        let bg_a = cast(&a, &g);
+        let bg_c = cast(&c, &g);
+        let pts_c: Vec<Point2> = background_points(&bg_c, &g, 28.5)
+            .unwrap()
+            .iter()
+            .map(|p| c.apply(p))
+            .collect();
+        // the true poses: C's background is consistent with what A saw through
+        let ok = free_space_violations(&pts_c, &a, &bg_a, &g, 0.15).unwrap();
+        assert!(ok.in_view > 100 && ok.fraction() < 0.01, "{ok:?}");
+        // C slid 2 m along the north wall: its points enter A's free space
+        let slid = Pose2::new(3.0, 7.75, c.theta);
+        let pts_slid: Vec<Point2> = background_points(&bg_c, &g, 28.5)
+            .unwrap()
+            .iter()
+            .map(|p| slid.apply(p))
+            .collect();
+        let bad = free_space_violations(&pts_slid, &a, &bg_a, &g, 0.15).unwrap();
+        assert!(bad.fraction() > 0.1, "{bad:?}");
+        assert_eq!(ok.merged(bad).in_view, ok.in_view + bad.in_view);
+        assert_eq!(FreeSpaceCheck::default().fraction(), 0.0);
+        assert!(free_space_violations(&pts_c, &a, &bg_a[1..], &g, 0.15).is_err());
+        assert!(free_space_violations(&pts_c, &a, &bg_a, &g, f64::NAN).is_err());
+        let nan = [Point2::new(f64::NAN, 0.0)];
+        assert!(free_space_violations(&nan, &a, &bg_a, &g, 0.1).is_err());
     }
 
     #[test]

@@ -141,6 +141,14 @@ pub enum BeamLabel {
 pub trait BackgroundModel {
     /// Labels every beam (one label per beam) and updates the model.
     fn classify(&mut self, scan: &PolarScan) -> Result<Vec<BeamLabel>, CoreError>;
+
+    /// The long-term per-beam background range `b_n` (metres, `None` where unknown) that a
+    /// client publishes for calibration (spec 003 §2.2, §2.3), once it has been learned. `None`
+    /// while it is still being learned or when the model keeps no long-term background (the
+    /// default).
+    fn published_background(&self) -> Option<&[Option<f64>]> {
+        None
+    }
 }
 
 /// A 2-D detection (a person, a cluster centre, ...).

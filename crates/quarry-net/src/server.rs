@@ -61,6 +61,13 @@ struct Core {
 impl Core {
     fn new(sensors: &[SensorSpec], cfg: &LidarPeopleConfig) -> Result<Self, NetError> {
         cfg.validate()?;
+        if cfg.calibration == quarry_trackers::lidar_people::Calibration::Icp {
+            // the nodes do not publish BackgroundScan messages yet: refuse rather than fuse
+            // with uncalibrated poses
+            return Err(NetError::Config(
+                "calibration = icp is not supported by the networked server yet (its nodes do not publish their backgrounds); use calibration = given with calibrated poses".into(),
+            ));
+        }
         let fusion = AssemblerFusion::new(sensors, cfg)?;
         let tracker = DefaultLidarTracker::from_config(cfg)?;
         Ok(Self {

@@ -45,6 +45,11 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::io::Write;
 
+/// Largest shift of the rough initial scanner poses of the `calib` scenario, metres (spec §5).
+pub const CALIB_MAX_SHIFT_M: f64 = 0.3;
+/// Largest rotation of the rough initial scanner poses of the `calib` scenario, degrees (spec §5).
+pub const CALIB_MAX_ROT_DEG: f64 = 10.0;
+
 /// Integration step of the people's motion, microseconds (5 ms, spec §5).
 pub const MOTION_STEP_US: i64 = 5_000;
 /// Fused-frame interval, microseconds (50 ms).
@@ -1453,8 +1458,50 @@ impl Scenario {
         s
     }
 
+    /// `calib`: the empty room for 10 s, for calibrating the scanners from their backgrounds
+    /// (spec §5, §2.3). The rough ("hand-measured") initial poses, the true poses perturbed by up
+    /// to [`CALIB_MAX_SHIFT_M`] and [`CALIB_MAX_ROT_DEG`], are drawn by
+    /// [`Scenario::hand_measured_poses`] from the scenario's seed.
+    pub fn calib(seed: u64) -> Self {
+        Self::base("calib", seed, 10.0)
+    }
+
+    /// Rough ("hand-measured") poses of the scanners: each true pose moved by a seeded draw of
+    /// at most `max_shift_m` metres (direction uniform, distance uniform in `[0, max_shift_m]`)
+    /// and turned by at most `max_rot_rad` (uniform in `[−max_rot_rad, max_rot_rad]`). Scanner
+    /// `i` draws from its own stream `(seed, [6, i])`, so the draw does not depend on the number
+    /// of scanners or on anything else in the run. In scenario order.
+    pub fn hand_measured_poses(
+        &self,
+        max_shift_m: f64,
+        max_rot_rad: f64,
+    ) -> Result<Vec<Pose2>, SimError> {
+        if !(max_shift_m.is_finite() && max_shift_m >= 0.0) {
+            return Err(CoreError::invalid("max_shift_m", "must be finite and >= 0").into());
+        }
+        if !(max_rot_rad.is_finite() && max_rot_rad >= 0.0) {
+            return Err(CoreError::invalid("max_rot_rad", "must be finite and >= 0").into());
+        }
+        Ok(self
+            .scanners
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let mut rng = stream(self.seed, &[6, i as u64]);
+                let dir = rng.random_range(-PI..PI);
+                let dist = max_shift_m * rng.random::<f64>();
+                let rot = max_rot_rad * (2.0 * rng.random::<f64>() - 1.0);
+                Pose2::new(
+                    s.pose.x + dist * dir.cos(),
+                    s.pose.y + dist * dir.sin(),
+                    s.pose.theta + rot,
+                )
+            })
+            .collect())
+    }
+
     /// A scenario by name: `empty`, `single_line`, `crossing`, `side_by_side`, `door`,
-    /// `stop_and_go`, `band_slow`, `band_mid`, `band_fast`, `crowd_<n>`.
+    /// `stop_and_go`, `calib`, `band_slow`, `band_mid`, `band_fast`, `crowd_<n>`.
     pub fn by_name(name: &str, seed: u64) -> Result<Self, SimError> {
         match name {
             "empty" => Ok(Self::empty(seed)),
@@ -1463,6 +1510,7 @@ impl Scenario {
             "side_by_side" => Ok(Self::side_by_side(seed)),
             "door" => Ok(Self::door(seed)),
             "stop_and_go" => Ok(Self::stop_and_go(seed)),
+            "calib" => Ok(Self::calib(seed)),
             _ => {
                 if let Some(b) = name.strip_prefix("band_") {
                     return Ok(Self::band(SpeedBand::parse(b)?, 3, seed));
@@ -1889,6 +1937,39 @@ mod tests {
 
     fn run_events(sc: Scenario) -> Vec<RoomEvent> {
         Runner::new(sc).unwrap().collect()
+    }
+
+    proptest::proptest! {
+        /// The rough poses of `calib` stay within the bounds, are reproducible from the seed and
+        /// differ between seeds.
+        #[test]
+        fn hand_measured_poses_stay_within_bounds(seed in 0u64..1_000_000, shift in 0.0f64..2.0, rot in 0.0f64..1.5) {
+            let sc = Scenario::calib(seed);
+            let a = sc.hand_measured_poses(shift, rot).unwrap();
+            proptest::prop_assert_eq!(&a, &sc.hand_measured_poses(shift, rot).unwrap());
+            proptest::prop_assert_eq!(a.len(), sc.scanners.len());
+            for (p, s) in a.iter().zip(&sc.scanners) {
+                proptest::prop_assert!((p.x - s.pose.x).hypot(p.y - s.pose.y) <= shift + 1e-12);
+                proptest::prop_assert!(quarry_core::wrap_angle(p.theta - s.pose.theta).abs() <= rot + 1e-12);
+            }
+            if shift > 0.01 {
+                proptest::prop_assert_ne!(a, Scenario::calib(seed + 1).hand_measured_poses(shift, rot).unwrap());
+            }
+        }
+    }
+
+    #[test]
+    fn calib_scenario_is_the_empty_room_for_ten_seconds() {
+        let sc = Scenario::by_name("calib", 4).unwrap();
+        assert_eq!(sc.name, "calib");
+        assert!(sc.people.is_empty());
+        assert_eq!(sc.duration_s, 10.0);
+        assert!(sc.hand_measured_poses(f64::NAN, 0.1).is_err());
+        assert!(sc.hand_measured_poses(0.3, -0.1).is_err());
+        let p = sc
+            .hand_measured_poses(CALIB_MAX_SHIFT_M, CALIB_MAX_ROT_DEG.to_radians())
+            .unwrap();
+        assert!(p.iter().zip(&sc.scanners).all(|(p, s)| *p != s.pose));
     }
 
     #[test]

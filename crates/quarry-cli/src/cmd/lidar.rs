@@ -39,7 +39,8 @@ in metres), gt_people.csv (simulation), metrics.json and plot.png (room, scanner
 GT in grey, tracks in colour).
 
 JSON (--json): success_rate, success_rate_detectable, loc_error_m, loc_rmse_m, mota, motp, \
-idf1, hota, idsw, frames, ms_per_frame, client_ms_per_scan, metrics (every measure).
+idf1, hota, idsw, frames, ms_per_frame, client_ms_per_scan, metrics (every measure), and with \
+--calibration icp: calibration (per scanner: rough, calibrated and true pose, errors, overlap, RMS).
 
 --scenario NAME runs one of the simulator's named scenarios instead (spec §5: empty, \
 single_line, crossing, side_by_side, door, stop_and_go, band_*, crowd_<n>) for its own duration, \
@@ -48,7 +49,8 @@ scoring up to --frames frames from t = 7 s.
 EXAMPLE:
   quarry lidar --band fast --frames 4800 --seed 1 --out run_fast
   quarry lidar --scenario door --frames 1640 --preset kf-gnn
-  quarry lidar --preset kf-gnn --json"
+  quarry lidar --preset kf-gnn --json
+  quarry lidar --calibration icp --seed 3"
 )]
 pub struct LidarArgs {
     /// Walking-speed band: slow (0.10-0.25 m/s), normal (0.75-1.00), fast (1.30-1.50).
@@ -84,6 +86,11 @@ pub struct LidarArgs {
     /// Simulated clocks: synced (default), skewed, skewed_broadcast or skewed_nosync.
     #[arg(long)]
     pub clock: Option<String>,
+    /// Scanner poses: given (the configured/true poses, default) or icp (calibrated from the
+    /// clients' backgrounds at the end of the warm-up, from rough poses drawn per seed up to
+    /// 0.3 m / 10°; prints the recovered poses and their errors).
+    #[arg(long)]
+    pub calibration: Option<String>,
     /// Recorded scans of one scanner (CSV `stamp_s,r0..r{N-1}`, metres, inf/nan = no return)
     /// instead of the simulated room.
     #[arg(long)]
@@ -139,6 +146,9 @@ pub struct LidarSummary {
     pub client_ms_per_scan: f64,
     /// Every §4 measure.
     pub metrics: Paper003Metrics,
+    /// With `--calibration icp`: the recovered poses and their errors against the truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<lidar_people::CalibrationReport>,
 }
 
 fn parse_band(s: &str) -> Result<SpeedBand, String> {
@@ -254,6 +264,7 @@ fn run_sim_scenario(
         ms_per_frame: 1e3 * run.server_seconds / run.frames_tracked.max(1) as f64,
         client_ms_per_scan: 1e3 * run.client_seconds / n_scans.max(1.0),
         metrics: m,
+        calibration: run.calibration.clone(),
     };
     Ok((summary, run, window, sc))
 }
@@ -264,8 +275,17 @@ pub fn run(args: &LidarArgs, out: &Output) -> CmdResult {
 }
 
 fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
-    let cfg = load_config(args)?;
+    let mut cfg = load_config(args)?;
+    if let Some(c) = &args.calibration {
+        cfg.calibration = lidar_people::Calibration::parse(c).map_err(|e| e.to_string())?;
+    }
     if let Some(scans) = &args.scans {
+        if cfg.calibration == lidar_people::Calibration::Icp {
+            return Err(
+                "--calibration icp needs the simulated room (several scanners); --scans is one recorded scanner"
+                    .into(),
+            );
+        }
         return run_recorded_cmd(args, scans, &cfg, output);
     }
     if args.frames == 0 {
@@ -547,6 +567,36 @@ fn summary_text(s: &LidarSummary) -> String {
         "  server {:.3} ms per fused frame, client {:.3} ms per scan",
         s.ms_per_frame, s.client_ms_per_scan
     );
+    if let Some(c) = &s.calibration {
+        let _ = writeln!(
+            t,
+            "  calibration icp at {:.3} s ({} frames before it not tracked): max error {:.4} m, {:.4} deg",
+            c.t_us as f64 * 1e-6,
+            c.frames_discarded,
+            c.max_pos_error_m,
+            c.max_rot_error_deg
+        );
+        for k in &c.scanners {
+            let _ = writeln!(
+                t,
+                "    {}{}: rough ({:.3}, {:.3}, {:.2}°) -> ({:.4}, {:.4}, {:.3}°), error {:.4} m {:.4}° (rough {:.3} m {:.2}°), overlap {:.3}, RMS {:.4} m",
+                k.name,
+                if k.reference { " (reference)" } else { "" },
+                k.rough.x,
+                k.rough.y,
+                k.rough.theta.to_degrees(),
+                k.pose.x,
+                k.pose.y,
+                k.pose.theta.to_degrees(),
+                k.pos_error_m,
+                k.rot_error_deg,
+                k.rough_pos_error_m,
+                k.rough_rot_error_deg,
+                k.overlap,
+                k.rms_m
+            );
+        }
+    }
     t
 }
 

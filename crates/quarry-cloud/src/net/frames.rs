@@ -306,6 +306,35 @@ impl FrameAssembler {
         }
     }
 
+    /// Replaces the world pose of `sensor` (e.g. after calibration, spec 003 §2.3). Scans are
+    /// transformed when their frame closes, so every frame closed afterwards uses the new pose,
+    /// including frames of scans already received. Errors: unknown sensor, non-finite pose.
+    pub fn set_pose(&mut self, sensor: SensorId, pose: Pose2) -> Result<()> {
+        if !pose.is_finite() {
+            return Err(CoreError::NonFinite {
+                what: "sensor pose",
+            }
+            .into());
+        }
+        let s = self
+            .sensors
+            .iter_mut()
+            .find(|s| s.cfg.id == sensor)
+            .ok_or_else(|| {
+                CoreError::invalid("sensor", format!("unknown sensor id {}", sensor.0))
+            })?;
+        s.cfg.pose = pose;
+        Ok(())
+    }
+
+    /// The world pose of `sensor` in use, if known.
+    pub fn pose(&self, sensor: SensorId) -> Option<Pose2> {
+        self.sensors
+            .iter()
+            .find(|s| s.cfg.id == sensor)
+            .map(|s| s.cfg.pose)
+    }
+
     /// Decodes and files one datagram received at server time `arrival`.
     pub fn on_datagram(&mut self, bytes: &[u8], arrival: TimeUs) -> Disposition {
         if let Ok(m) = Message::decode(bytes) {
@@ -735,6 +764,37 @@ mod tests {
         u.header.flags = FLAG_CLOCK_SYNCED;
         u.header.t_capture = TimeUs(t + 10_000_000);
         assert_eq!(fa.on_message(&u, TimeUs(*t)), Disposition::Future);
+    }
+
+    #[test]
+    fn set_pose_applies_to_frames_closed_afterwards() {
+        let s = sensors();
+        let mut fa = FrameAssembler::new(FrameConfig::default(), &s, TimeUs(0)).unwrap();
+        let h = Header {
+            kind: Kind::DynamicScan,
+            sensor: SensorId(10),
+            seq: 0,
+            part: 0,
+            parts: 1,
+            flags: FLAG_CLOCK_SYNCED,
+            t_capture: TimeUs(51_000),
+            t_send: TimeUs(52_000),
+        };
+        let b = &encode_scan(h, &[(540, 2000)]).unwrap()[0];
+        fa.on_datagram(b, TimeUs(53_000));
+        let moved = Pose2::new(1.0, 2.0, 0.5);
+        assert!(fa.set_pose(SensorId(99), moved).is_err());
+        assert!(
+            fa.set_pose(SensorId(10), Pose2::new(f64::NAN, 0.0, 0.0))
+                .is_err()
+        );
+        assert_eq!(fa.pose(SensorId(10)), Some(s[0].pose));
+        fa.set_pose(SensorId(10), moved).unwrap();
+        assert_eq!(fa.pose(SensorId(10)), Some(moved));
+        let frames = fa.poll(TimeUs(1_000_000));
+        let f = frames.iter().find(|f| f.t == TimeUs(50_000)).unwrap();
+        let want = moved.apply(&Point2::new(2.0, 0.0));
+        assert!((f.points[0].p - want).norm() < 1e-9);
     }
 
     #[test]

@@ -52,6 +52,40 @@ pub enum FusionTime {
     Arrival,
 }
 
+/// How the server obtains the scanners' world poses (spec 003 §2.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Calibration {
+    /// The poses come from the configuration (in the simulator: the true poses). The spec's
+    /// default for the simulator.
+    #[default]
+    Given,
+    /// The server registers the clients' long-term backgrounds `b_n` at the end of the warm-up
+    /// (trimmed ICP from rough poses, quarry-cloud's `calib`) and fuses with the calibrated poses.
+    Icp,
+}
+
+impl Calibration {
+    /// Parses `given` or `icp`.
+    pub fn parse(s: &str) -> Result<Self, TrackerError> {
+        match s {
+            "given" => Ok(Self::Given),
+            "icp" => Ok(Self::Icp),
+            _ => Err(TrackerError::Config(format!(
+                "unknown calibration {s:?} (expected given or icp)"
+            ))),
+        }
+    }
+
+    /// `given` or `icp`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Given => "given",
+            Self::Icp => "icp",
+        }
+    }
+}
+
 /// Every parameter of spec 003 §3. Tags: **[P]** paper, **[D]** UTM-30LX datasheet, **[Q]**
 /// proposed by the spec (with the reason given there).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -162,6 +196,31 @@ pub struct LidarPeopleConfig {
     // ----- evaluation (§4) -----
     /// Evaluation match threshold d_match, metres [Q: 0.5].
     pub d_match: f64,
+
+    // ----- extrinsic calibration (§2.3) -----
+    /// `given` (default in the simulator) or `icp` (from the clients' backgrounds).
+    pub calibration: Calibration,
+    /// `icp`: sensor id of the reference scanner s₀, whose configured pose is taken as exact
+    /// [choice: 0, scanner A].
+    pub calib_reference: u16,
+    /// `icp` in the simulator without `calib_rough_poses`: the rough poses are the true poses
+    /// moved by a seeded draw of at most this many metres [spec §5 `calib`: 0.3].
+    pub calib_max_shift_m: f64,
+    /// ... and turned by at most this many degrees [spec §5 `calib`: 10].
+    pub calib_max_rot_deg: f64,
+    /// `icp`: rough ("hand-measured") poses `[x m, y m, θ degrees]`, one per scanner in the
+    /// scenario's order, instead of the seeded draw; the reference's entry is its exact pose.
+    /// Empty (default): the seeded draw.
+    pub calib_rough_poses: Vec<[f64; 3]>,
+    /// `icp`: refuse the calibration when, under the calibrated poses, more than this fraction
+    /// of the background points of the other scanners lie in the free space a scanner saw
+    /// through (or its points in theirs) [choice: 0.02; an addition to §2.3 step 4, whose overlap
+    /// and RMS bounds accept scanners slid along a wall; measured 0 at every correct
+    /// calibration, ≥ 0.07 at every wrong one, docs/lidar-people.md].
+    pub calib_max_free_space_violation: f64,
+    /// `icp`: point-to-line registration (Censi 2008, the upgrade §2.3 allows; default `true`)
+    /// or the spec's plain point-to-point ICP with the closed-form solve (`false`).
+    pub calib_point_to_line: bool,
 }
 
 impl Default for LidarPeopleConfig {
@@ -216,6 +275,13 @@ impl LidarPeopleConfig {
             kf_n_del: 5,
             kf_max_coast_report: 2,
             d_match: 0.5,
+            calibration: Calibration::Given,
+            calib_reference: 0,
+            calib_max_shift_m: 0.3,
+            calib_max_rot_deg: 10.0,
+            calib_rough_poses: Vec::new(),
+            calib_max_free_space_violation: 0.02,
+            calib_point_to_line: true,
         }
     }
 
@@ -318,6 +384,30 @@ impl LidarPeopleConfig {
                     .into(),
             ));
         }
+        for (name, v) in [
+            ("calib_max_shift_m", self.calib_max_shift_m),
+            ("calib_max_rot_deg", self.calib_max_rot_deg),
+            (
+                "calib_max_free_space_violation",
+                self.calib_max_free_space_violation,
+            ),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(TrackerError::Config(format!(
+                    "{name} must be finite and >= 0, got {v}"
+                )));
+            }
+        }
+        if let Some((i, p)) = self
+            .calib_rough_poses
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !p.iter().all(|v| v.is_finite()))
+        {
+            return Err(TrackerError::Config(format!(
+                "calib_rough_poses[{i}] must be finite, got {p:?}"
+            )));
+        }
         if self.kf_m == 0 || self.kf_m > self.kf_n || self.kf_n > 64 {
             return Err(TrackerError::Config(
                 "kf-gnn needs 1 <= kf_m <= kf_n <= 64".into(),
@@ -353,5 +443,32 @@ mod tests {
             a
         );
         assert!(LidarPeopleConfig::from_toml("fusion = \"guess\"").is_err());
+    }
+
+    #[test]
+    fn calibration_switch_parses_and_validates() {
+        assert_eq!(LidarPeopleConfig::default().calibration, Calibration::Given);
+        let c = LidarPeopleConfig::from_toml(
+            "calibration = \"icp\"\ncalib_reference = 1\ncalib_rough_poses = [[0.3, 0.2, 44.0], [9.7, 0.3, 136.0], [5.0, 7.7, -91.0]]\n",
+        )
+        .unwrap();
+        assert_eq!(c.calibration, Calibration::Icp);
+        assert_eq!(c.calib_reference, 1);
+        assert_eq!(c.calib_rough_poses[2], [5.0, 7.7, -91.0]);
+        assert_eq!(
+            LidarPeopleConfig::from_toml(&c.to_toml().unwrap()).unwrap(),
+            c
+        );
+        assert!(LidarPeopleConfig::from_toml("calibration = \"sideways\"").is_err());
+        assert!(LidarPeopleConfig::from_toml("calib_max_shift_m = -0.1").is_err());
+        assert!(LidarPeopleConfig::from_toml("calib_max_rot_deg = nan").is_err());
+        let bad = LidarPeopleConfig {
+            calib_rough_poses: vec![[0.0, f64::INFINITY, 0.0]],
+            ..LidarPeopleConfig::default()
+        };
+        assert!(bad.validate().is_err());
+        assert_eq!(Calibration::parse("icp").unwrap(), Calibration::Icp);
+        assert!(Calibration::parse("ICP!").is_err());
+        assert_eq!(Calibration::Given.name(), "given");
     }
 }

@@ -9,13 +9,18 @@
 //! ellipse model, fusion), `quarry_assoc` (gate (8), Hungarian, M-of-N), `quarry_filter` (the CV
 //! Kalman filter).
 
+mod calibration;
 mod config;
 mod metrics;
 mod pipeline;
 mod recorded;
 mod tracker;
 
-pub use config::{FusionTime, LidarPeopleConfig, Preset};
+pub use calibration::{
+    CalibrationReport, ScannerCalibration, calibrate_backgrounds, calibrate_scenario, pose_error,
+    rough_poses,
+};
+pub use config::{Calibration, FusionTime, LidarPeopleConfig, Preset};
 pub use metrics::{
     EvalFrame, LocStats, Paper003Metrics, evaluate_paper003, loc_stats, match_within, paper_success,
 };

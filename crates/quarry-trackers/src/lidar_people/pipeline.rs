@@ -90,6 +90,16 @@ pub trait Fusion {
     fn push(&mut self, scan: DynamicScan, arrival: TimeUs) -> Result<(), TrackerError>;
     /// Closes every frame whose release condition holds at server time `now`.
     fn poll(&mut self, now: TimeUs) -> Result<Vec<FusedPoints>, TrackerError>;
+    /// Replaces the world pose of `sensor` for the frames closed from now on
+    /// (`calibration = icp`). The default refuses: a fusion stage that cannot change poses
+    /// cannot run with calibrated poses.
+    fn set_pose(&mut self, sensor: SensorId, pose: Pose2) -> Result<(), TrackerError> {
+        let _ = pose;
+        Err(TrackerError::Config(format!(
+            "this fusion stage cannot change the pose of sensor {} (calibration = icp needs Fusion::set_pose)",
+            sensor.0
+        )))
+    }
 }
 
 /// The server: fusion then tracking.
@@ -158,6 +168,8 @@ pub struct RoomRun {
     pub server_seconds: f64,
     /// Time spent in the clients' background subtraction, seconds.
     pub client_seconds: f64,
+    /// `calibration = icp`: the calibrated poses and their errors against the truth.
+    pub calibration: Option<super::CalibrationReport>,
 }
 
 impl RoomRun {
@@ -191,6 +203,14 @@ impl RoomRun {
 ///
 /// `make_background` builds each scanner's background model from its geometry;
 /// `progress` receives the simulated time fraction in [0, 1].
+///
+/// With `calibration = icp` the fusion starts from the rough poses of
+/// [`super::rough_poses`] (the true poses are never handed to it), the server calibrates once
+/// every client has published its long-term background `b_n`
+/// ([`BackgroundModel::published_background`], i.e. at the end of the warm-up), sets the
+/// calibrated poses ([`Fusion::set_pose`]) and only then tracks: frames that close before the
+/// calibration are not tracked (counted in [`super::CalibrationReport::frames_discarded`]). A
+/// failed calibration ends the run with [`TrackerError::Calibration`] naming the scanner.
 pub fn run_room<B, F, T>(
     sc: Scenario,
     cfg: &LidarPeopleConfig,
@@ -205,7 +225,19 @@ where
     T: MultiTargetTracker<Input = FusedPoints, Error = TrackerError> + RowSource,
 {
     cfg.validate()?;
-    let poses: Vec<Pose2> = sc.scanners.iter().map(|s| s.pose).collect();
+    let mut fusion = fusion;
+    let mut discarded = 0usize;
+    let mut calib = match cfg.calibration {
+        super::Calibration::Given => None,
+        super::Calibration::Icp => {
+            let p = super::calibration::PendingCalibration::new(&sc, cfg)?;
+            for (s, r) in sc.scanners.iter().zip(&p.rough) {
+                fusion.set_pose(s.id, *r)?;
+            }
+            Some(p)
+        }
+    };
+    let mut poses: Vec<Pose2> = sc.scanners.iter().map(|s| s.pose).collect();
     let mut clients = sc
         .scanners
         .iter()
@@ -224,7 +256,8 @@ where
                    queue: &mut BinaryHeap<Reverse<(i64, u64, usize)>>,
                    pending: &mut Vec<Option<DynamicScan>>,
                    now: i64,
-                   run: &mut RoomRun|
+                   run: &mut RoomRun,
+                   discarded: Option<&mut usize>|
      -> Result<(), TrackerError> {
         while let Some(Reverse((ta, _, idx))) = queue.peek().copied() {
             if ta > now {
@@ -236,6 +269,12 @@ where
             }
         }
         let t0 = Instant::now();
+        if let Some(d) = discarded {
+            // poses not calibrated yet: close the due frames without tracking them
+            *d += server.fusion.poll(TimeUs(now))?.len();
+            run.server_seconds += t0.elapsed().as_secs_f64();
+            return Ok(());
+        }
         for (k, f, _) in server.poll(TimeUs(now))? {
             run.frames_tracked += 1;
             run.tracks.push((k, f.t, server.tracker.rows().to_vec()));
@@ -254,12 +293,23 @@ where
                 let i = cs.scanner;
                 let msg = clients[i].on_scan(&cs.scan, cs.clock_synced)?;
                 run.client_seconds += t0.elapsed().as_secs_f64();
+                if let Some(p) = calib.as_mut()
+                    && let Some(rep) = p.on_scan(&clients, i, TimeUs(now), cfg)?
+                {
+                    for s in &rep.scanners {
+                        server.fusion.set_pose(SensorId(s.sensor), s.pose)?;
+                    }
+                    poses = rep.scanners.iter().map(|s| s.pose).collect();
+                    run.calibration = Some(rep);
+                    calib = None;
+                }
                 for a in &cs.arrivals {
                     pending.push(Some(msg.clone()));
                     queue.push(Reverse((a.0, counter, pending.len() - 1)));
                     counter += 1;
                 }
-                deliver(&mut server, &mut queue, &mut pending, now, &mut run)?;
+                let d = calib.is_some().then_some(&mut discarded);
+                deliver(&mut server, &mut queue, &mut pending, now, &mut run, d)?;
             }
             RoomEvent::Frame(g) => {
                 let now = g.t.0;
@@ -269,7 +319,8 @@ where
                     last_report = frac;
                 }
                 run.gt.push(g);
-                deliver(&mut server, &mut queue, &mut pending, now, &mut run)?;
+                let d = calib.is_some().then_some(&mut discarded);
+                deliver(&mut server, &mut queue, &mut pending, now, &mut run, d)?;
                 if pending.len() > 4096 && queue.is_empty() {
                     pending.clear();
                 }
@@ -278,7 +329,15 @@ where
     }
     // flush: everything arrives, then the last frames close at their deadline
     let end = run.gt.last().map_or(0, |g| g.t.0) + 1_000_000;
-    deliver(&mut server, &mut queue, &mut pending, end, &mut run)?;
+    if calib.is_some() {
+        return Err(TrackerError::Config(
+            "calibration = icp: the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)".into(),
+        ));
+    }
+    deliver(&mut server, &mut queue, &mut pending, end, &mut run, None)?;
+    if let Some(c) = run.calibration.as_mut() {
+        c.frames_discarded = discarded;
+    }
     progress(1.0);
     // background points for plots
     for (c, (pose, g)) in clients.iter().zip(poses.iter().zip(&geoms)) {
@@ -373,6 +432,12 @@ impl Fusion for AssemblerFusion {
         Ok(())
     }
 
+    fn set_pose(&mut self, sensor: SensorId, pose: Pose2) -> Result<(), TrackerError> {
+        self.assembler
+            .set_pose(sensor, pose)
+            .map_err(|e| quarry_core::CoreError::from(e).into())
+    }
+
     fn poll(&mut self, now: TimeUs) -> Result<Vec<FusedPoints>, TrackerError> {
         Ok(self
             .assembler
@@ -394,10 +459,21 @@ pub fn run_room_default(
     cfg: &LidarPeopleConfig,
     progress: &mut dyn FnMut(f64),
 ) -> Result<RoomRun, TrackerError> {
+    if cfg.calibration == super::Calibration::Icp && !cfg.revealed_background {
+        return Err(TrackerError::Config(
+            "calibration = icp needs the long-term background b_n (revealed_background = true; the literal preset keeps none)".into(),
+        ));
+    }
+    // with `icp` the fusion only ever sees the rough poses, then the calibrated ones
+    let start_poses: Vec<Pose2> = match cfg.calibration {
+        super::Calibration::Given => sc.scanners.iter().map(|s| s.pose).collect(),
+        super::Calibration::Icp => super::rough_poses(&sc, cfg)?,
+    };
     let sensors: Vec<(SensorId, Pose2, ScanGeometry)> = sc
         .scanners
         .iter()
-        .map(|s| (s.id, s.pose, s.geometry))
+        .zip(start_poses)
+        .map(|(s, p)| (s.id, p, s.geometry))
         .collect();
     let fusion = AssemblerFusion::new(&sensors, cfg)?;
     let tracker = super::DefaultLidarTracker::from_config(cfg)?;
