@@ -11,8 +11,8 @@ use quarry_sim::lidar_room::{
 };
 use quarry_trackers::TrackerError;
 use quarry_trackers::lidar_people::{
-    Calibration, LidarPeopleConfig, Paper003Metrics, Preset, background_of, calibrate_backgrounds,
-    calibrate_scenario, evaluate_paper003, gate_of, run_room_default,
+    Calibration, CalibrationReport, LidarPeopleConfig, Paper003Metrics, Preset, background_of,
+    calibrate_backgrounds, calibrate_scenario, evaluate_paper003, gate_of, run_room_default,
 };
 use std::sync::OnceLock;
 
@@ -37,6 +37,21 @@ fn rough_from(sc: &Scenario, delta: &[(f64, f64, f64)]) -> Vec<[f64; 3]> {
             ]
         })
         .collect()
+}
+
+/// Runs the `calib` scenario with `cfg`, prints the worst errors under `label` and asserts
+/// property 7 (every pose within 2 cm and 0.3°).
+fn assert_property_7(sc: Scenario, cfg: &LidarPeopleConfig, label: &str) -> CalibrationReport {
+    let rep = calibrate_scenario(sc, cfg).unwrap();
+    eprintln!(
+        "{label}: {:.4} m {:.4} deg",
+        rep.max_pos_error_m, rep.max_rot_error_deg
+    );
+    assert!(
+        rep.max_pos_error_m <= 0.02 && rep.max_rot_error_deg <= 0.3,
+        "{label}: {rep:?}"
+    );
+    rep
 }
 
 #[test]
@@ -88,14 +103,10 @@ fn plain_point_to_point_icp_also_meets_property_7() {
         ..icp()
     };
     for seed in [3, 5, 10] {
-        let rep = calibrate_scenario(Scenario::calib(seed), &cfg).unwrap();
-        eprintln!(
-            "point-to-point seed {seed}: {:.4} m {:.4} deg",
-            rep.max_pos_error_m, rep.max_rot_error_deg
-        );
-        assert!(
-            rep.max_pos_error_m <= 0.02 && rep.max_rot_error_deg <= 0.3,
-            "{rep:?}"
+        assert_property_7(
+            Scenario::calib(seed),
+            &cfg,
+            &format!("point-to-point seed {seed}"),
         );
     }
 }
@@ -116,15 +127,7 @@ fn worst_case_rough_poses_are_recovered() {
             calib_rough_poses: rough_from(&sc, &[(0.0, 0.0, 0.0), b, c]),
             ..icp()
         };
-        let rep = calibrate_scenario(sc.clone(), &cfg).unwrap();
-        eprintln!(
-            "{b:?} {c:?}: {:.4} m {:.4} deg",
-            rep.max_pos_error_m, rep.max_rot_error_deg
-        );
-        assert!(
-            rep.max_pos_error_m <= 0.02 && rep.max_rot_error_deg <= 0.3,
-            "{rep:?}"
-        );
+        assert_property_7(sc.clone(), &cfg, &format!("{b:?} {c:?}"));
     }
 }
 
@@ -135,14 +138,10 @@ fn another_reference_gives_the_same_poses() {
         calib_reference: 1,
         ..icp()
     };
-    let rep = calibrate_scenario(Scenario::calib(3), &cfg).unwrap();
+    let rep = assert_property_7(Scenario::calib(3), &cfg, "reference B");
     assert_eq!(rep.order[0], 1);
     assert!(rep.scanners[1].reference && rep.scanners[1].pos_error_m == 0.0);
     assert!(rep.scanners[0].rough_pos_error_m > 0.0);
-    assert!(
-        rep.max_pos_error_m <= 0.02 && rep.max_rot_error_deg <= 0.3,
-        "{rep:?}"
-    );
 }
 
 #[test]

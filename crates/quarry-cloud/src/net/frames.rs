@@ -766,20 +766,25 @@ mod tests {
         assert_eq!(fa.on_message(&u, TimeUs(*t)), Disposition::Future);
     }
 
-    #[test]
-    fn set_pose_applies_to_frames_closed_afterwards() {
-        let s = sensors();
-        let mut fa = FrameAssembler::new(FrameConfig::default(), &s, TimeUs(0)).unwrap();
-        let h = Header {
+    /// The header of a synchronised one-part dynamic scan captured at `t_us`, sent 1 ms later.
+    fn synced_header(sensor: SensorId, t_us: i64) -> Header {
+        Header {
             kind: Kind::DynamicScan,
-            sensor: SensorId(10),
+            sensor,
             seq: 0,
             part: 0,
             parts: 1,
             flags: FLAG_CLOCK_SYNCED,
-            t_capture: TimeUs(51_000),
-            t_send: TimeUs(52_000),
-        };
+            t_capture: TimeUs(t_us),
+            t_send: TimeUs(t_us + 1000),
+        }
+    }
+
+    #[test]
+    fn set_pose_applies_to_frames_closed_afterwards() {
+        let s = sensors();
+        let mut fa = FrameAssembler::new(FrameConfig::default(), &s, TimeUs(0)).unwrap();
+        let h = synced_header(SensorId(10), 51_000);
         let b = &encode_scan(h, &[(540, 2000)]).unwrap()[0];
         fa.on_datagram(b, TimeUs(53_000));
         let moved = Pose2::new(1.0, 2.0, 0.5);
@@ -801,16 +806,7 @@ mod tests {
     fn frame_points_are_in_world_frame() {
         let s = sensors();
         let mut fa = FrameAssembler::new(FrameConfig::default(), &s, TimeUs(0)).unwrap();
-        let h = Header {
-            kind: Kind::DynamicScan,
-            sensor: SensorId(11),
-            seq: 0,
-            part: 0,
-            parts: 1,
-            flags: FLAG_CLOCK_SYNCED,
-            t_capture: TimeUs(51_000),
-            t_send: TimeUs(52_000),
-        };
+        let h = synced_header(SensorId(11), 51_000);
         let b = &encode_scan(h, &[(540, 2000), (100, 50)]).unwrap()[0];
         assert_eq!(fa.on_datagram(b, TimeUs(53_000)), Disposition::Accepted);
         assert_eq!(fa.on_datagram(b, TimeUs(53_500)), Disposition::Duplicate);
