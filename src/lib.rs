@@ -13,7 +13,9 @@
 //! | [`sim`] | quarry-sim | seeded scenario generators with ground truth |
 //! | [`eval`] | quarry-eval | RMSE/NEES, CLEAR MOT, IDF1, HOTA, OSPA/GOSPA |
 //! | [`trackers`] | quarry-trackers | the four papers' trackers |
-//! | [`net`] | quarry-net | networked lidar tracker: transports (in-process, zenoh), nodes, server |
+//! | [`net`] | quarry-net | networked lidar tracker: wire format, clock sync, frame assembly, transports (in-process, zenoh), nodes, server |
+//! | [`data`] | quarry-data | readers of real recordings (MRCLAM, recorded laser scans) |
+//! | [`repro`] | quarry-repro | the papers' experiments: trackers on the simulators and on recordings, scored |
 //!
 //! ```
 //! use quarry::core::{Pose2, Point2};
@@ -24,9 +26,11 @@
 pub use quarry_assoc as assoc;
 pub use quarry_cloud as cloud;
 pub use quarry_core as core;
+pub use quarry_data as data;
 pub use quarry_eval as eval;
 pub use quarry_filter as filter;
 pub use quarry_net as net;
+pub use quarry_repro as repro;
 pub use quarry_sim as sim;
 pub use quarry_trackers as trackers;
 pub use quarry_vision as vision;

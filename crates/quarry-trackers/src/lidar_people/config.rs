@@ -17,25 +17,23 @@ pub enum Preset {
     KfGnn,
 }
 
-impl Preset {
-    /// Parses `literal`, `faithful`, `kf-gnn` (or `kf_gnn`).
-    pub fn parse(s: &str) -> Result<Self, TrackerError> {
-        match s {
-            "literal" => Ok(Self::Literal),
-            "faithful" => Ok(Self::Faithful),
-            "kf-gnn" | "kf_gnn" | "kfgnn" => Ok(Self::KfGnn),
-            _ => Err(TrackerError::Config(format!(
-                "unknown preset {s:?} (expected literal, faithful or kf-gnn)"
-            ))),
-        }
-    }
+impl crate::PresetName for Preset {
+    const ALL: &'static [Self] = &[Self::Faithful, Self::Literal, Self::KfGnn];
+    const TRACKER: &'static str = "lidar_people";
 
-    /// `literal`, `faithful`, `kf-gnn`.
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Self::Literal => "literal",
             Self::Faithful => "faithful",
             Self::KfGnn => "kf-gnn",
+        }
+    }
+
+    fn about(self) -> &'static str {
+        match self {
+            Self::Literal => "the paper's Table 1 read word for word (ablation)",
+            Self::Faithful => "the paper's structure with the spec's gap fills (default)",
+            Self::KfGnn => "the same detector, then CV Kalman + chi-square gate + GNN + M-of-N",
         }
     }
 }
@@ -71,9 +69,10 @@ impl Calibration {
         match s {
             "given" => Ok(Self::Given),
             "icp" => Ok(Self::Icp),
-            _ => Err(TrackerError::Config(format!(
-                "unknown calibration {s:?} (expected given or icp)"
-            ))),
+            _ => Err(TrackerError::config(
+                "lidar_people",
+                format!("unknown calibration {s:?} (expected given or icp)"),
+            )),
         }
     }
 
@@ -307,8 +306,13 @@ impl LidarPeopleConfig {
         }
     }
 
-    /// The configuration of a preset.
-    pub fn preset(p: Preset) -> Self {
+}
+
+impl crate::TrackerConfig for LidarPeopleConfig {
+    type Preset = Preset;
+    const NAME: &'static str = "lidar_people";
+
+    fn preset(p: Preset) -> Self {
         match p {
             Preset::Literal => Self::literal(),
             Preset::Faithful => Self::faithful(),
@@ -316,20 +320,8 @@ impl LidarPeopleConfig {
         }
     }
 
-    /// Parses TOML (missing keys take the `faithful` values) and validates.
-    pub fn from_toml(s: &str) -> Result<Self, TrackerError> {
-        let c: Self = toml::from_str(s).map_err(|e| TrackerError::Config(e.to_string()))?;
-        c.validate()?;
-        Ok(c)
-    }
-
-    /// TOML text of this configuration.
-    pub fn to_toml(&self) -> Result<String, TrackerError> {
-        toml::to_string(self).map_err(|e| TrackerError::Config(e.to_string()))
-    }
-
     /// Checks every value is usable.
-    pub fn validate(&self) -> Result<(), TrackerError> {
+    fn validate(&self) -> Result<(), TrackerError> {
         let pos = [
             ("p_th", self.p_th),
             ("kappa", self.kappa),
@@ -356,7 +348,7 @@ impl LidarPeopleConfig {
         ];
         for (name, v) in pos {
             if !(v.is_finite() && v > 0.0) {
-                return Err(TrackerError::Config(format!(
+                return Err(TrackerError::config("lidar_people", format!(
                     "{name} must be finite and > 0, got {v}"
                 )));
             }
@@ -368,20 +360,17 @@ impl LidarPeopleConfig {
         ];
         for (name, v) in nonneg {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(TrackerError::Config(format!(
+                return Err(TrackerError::config("lidar_people", format!(
                     "{name} must be finite and >= 0, got {v}"
                 )));
             }
         }
         if !(self.p_th < 1.0 && self.alpha_b <= 1.0) {
-            return Err(TrackerError::Config(
-                "p_th must be < 1 and alpha_b <= 1".into(),
+            return Err(TrackerError::config("lidar_people", "p_th must be < 1 and alpha_b <= 1",
             ));
         }
         if self.window_m < 2 || self.k_m < 3 || self.icp_it_max == 0 || self.min_num_point == 0 {
-            return Err(TrackerError::Config(
-                "window_m >= 2, k_m >= 3, icp_it_max >= 1 and min_num_point >= 1 are required"
-                    .into(),
+            return Err(TrackerError::config("lidar_people", "window_m >= 2, k_m >= 3, icp_it_max >= 1 and min_num_point >= 1 are required",
             ));
         }
         for (name, v) in [
@@ -393,7 +382,7 @@ impl LidarPeopleConfig {
             ),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(TrackerError::Config(format!(
+                return Err(TrackerError::config("lidar_people", format!(
                     "{name} must be finite and >= 0, got {v}"
                 )));
             }
@@ -404,13 +393,12 @@ impl LidarPeopleConfig {
             .enumerate()
             .find(|(_, p)| !p.iter().all(|v| v.is_finite()))
         {
-            return Err(TrackerError::Config(format!(
+            return Err(TrackerError::config("lidar_people", format!(
                 "calib_rough_poses[{i}] must be finite, got {p:?}"
             )));
         }
         if self.kf_m == 0 || self.kf_m > self.kf_n || self.kf_n > 64 {
-            return Err(TrackerError::Config(
-                "kf-gnn needs 1 <= kf_m <= kf_n <= 64".into(),
+            return Err(TrackerError::config("lidar_people", "kf-gnn needs 1 <= kf_m <= kf_n <= 64",
             ));
         }
         Ok(())
@@ -420,48 +408,48 @@ impl LidarPeopleConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{PresetName, TrackerConfig};
 
     #[test]
     fn toml_round_trip_and_defaults() {
         let c = LidarPeopleConfig::default();
         assert_eq!(c.preset, Preset::Faithful);
         let t = c.to_toml().unwrap();
-        assert_eq!(LidarPeopleConfig::from_toml(&t).unwrap(), c);
-        let l = LidarPeopleConfig::from_toml("preset = \"literal\"\nk_m = 16\n").unwrap();
+        assert_eq!(LidarPeopleConfig::from_toml(&t, None).unwrap(), c);
+        let l = LidarPeopleConfig::from_toml("preset = \"literal\"\nk_m = 16\n", None).unwrap();
         assert_eq!(l.k_m, 16);
         assert_eq!(l.window_m, 40);
-        assert!(LidarPeopleConfig::from_toml("bandwidth = -1.0").is_err());
-        assert!(LidarPeopleConfig::from_toml("nonsense = 1").is_err());
+        assert!(LidarPeopleConfig::from_toml("bandwidth = -1.0", None).is_err());
+        assert!(LidarPeopleConfig::from_toml("nonsense = 1", None).is_err());
         assert_eq!(LidarPeopleConfig::literal().k_m, 16);
         assert!(!LidarPeopleConfig::literal().icp_trim);
         assert!((c.gate_k * c.gate_k - 13.2767).abs() < 1e-3);
         assert_eq!(c.fusion, FusionTime::Capture);
-        let a = LidarPeopleConfig::from_toml("fusion = \"arrival\"").unwrap();
+        let a = LidarPeopleConfig::from_toml("fusion = \"arrival\"", None).unwrap();
         assert_eq!(a.fusion, FusionTime::Arrival);
         assert_eq!(
-            LidarPeopleConfig::from_toml(&a.to_toml().unwrap()).unwrap(),
+            LidarPeopleConfig::from_toml(&a.to_toml().unwrap(), None).unwrap(),
             a
         );
-        assert!(LidarPeopleConfig::from_toml("fusion = \"guess\"").is_err());
+        assert!(LidarPeopleConfig::from_toml("fusion = \"guess\"", None).is_err());
     }
 
     #[test]
     fn calibration_switch_parses_and_validates() {
         assert_eq!(LidarPeopleConfig::default().calibration, Calibration::Given);
         let c = LidarPeopleConfig::from_toml(
-            "calibration = \"icp\"\ncalib_reference = 1\ncalib_rough_poses = [[0.3, 0.2, 44.0], [9.7, 0.3, 136.0], [5.0, 7.7, -91.0]]\n",
-        )
+            "calibration = \"icp\"\ncalib_reference = 1\ncalib_rough_poses = [[0.3, 0.2, 44.0], [9.7, 0.3, 136.0], [5.0, 7.7, -91.0]]\n", None)
         .unwrap();
         assert_eq!(c.calibration, Calibration::Icp);
         assert_eq!(c.calib_reference, 1);
         assert_eq!(c.calib_rough_poses[2], [5.0, 7.7, -91.0]);
         assert_eq!(
-            LidarPeopleConfig::from_toml(&c.to_toml().unwrap()).unwrap(),
+            LidarPeopleConfig::from_toml(&c.to_toml().unwrap(), None).unwrap(),
             c
         );
-        assert!(LidarPeopleConfig::from_toml("calibration = \"sideways\"").is_err());
-        assert!(LidarPeopleConfig::from_toml("calib_max_shift_m = -0.1").is_err());
-        assert!(LidarPeopleConfig::from_toml("calib_max_rot_deg = nan").is_err());
+        assert!(LidarPeopleConfig::from_toml("calibration = \"sideways\"", None).is_err());
+        assert!(LidarPeopleConfig::from_toml("calib_max_shift_m = -0.1", None).is_err());
+        assert!(LidarPeopleConfig::from_toml("calib_max_rot_deg = nan", None).is_err());
         let bad = LidarPeopleConfig {
             calib_rough_poses: vec![[0.0, f64::INFINITY, 0.0]],
             ..LidarPeopleConfig::default()

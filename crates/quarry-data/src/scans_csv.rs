@@ -26,13 +26,13 @@ use std::io::Read;
 use quarry_core::{CoreError, PolarScan, ScanGeometry, SensorId, TimeUs};
 use serde::Deserialize;
 
-use crate::error::{CloudError, Result};
-use crate::scan::metres_to_mm;
+use crate::error::{DataError, Result};
+use quarry_cloud::scan::metres_to_mm;
 
 /// What to do with a row that cannot be used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RowPolicy {
-    /// Stop with [`CloudError::Csv`] naming the line (default).
+    /// Stop with [`DataError::Csv`] naming the line (default).
     #[default]
     Error,
     /// Skip the row and count it.
@@ -84,8 +84,8 @@ impl<R: Read> std::fmt::Debug for ScanCsvReader<R> {
     }
 }
 
-fn csv_err(line: u64, reason: impl Into<String>) -> CloudError {
-    CloudError::Csv {
+fn csv_err(line: u64, reason: impl Into<String>) -> DataError {
+    DataError::Csv {
         line,
         reason: reason.into(),
     }
@@ -220,7 +220,7 @@ impl<R: Read> Iterator for ScanCsvReader<R> {
             self.stats.scans += 1;
             return Some(
                 PolarScan::try_new(self.opts.sensor, seq, t, ranges, self.geometry)
-                    .map_err(CloudError::from),
+                    .map_err(DataError::from),
             );
         }
     }
@@ -232,7 +232,10 @@ pub fn read_scans(
     geometry: ScanGeometry,
     opts: ScanCsvOptions,
 ) -> Result<(Vec<PolarScan>, ScanCsvStats)> {
-    let f = std::fs::File::open(path.as_ref())?;
+    let f = std::fs::File::open(path.as_ref()).map_err(|e| DataError::Io {
+        path: path.as_ref().display().to_string(),
+        reason: e.to_string(),
+    })?;
     let mut rdr = ScanCsvReader::new(std::io::BufReader::new(f), geometry, opts)?;
     let mut scans = Vec::new();
     for s in rdr.by_ref() {
@@ -320,7 +323,7 @@ mod tests {
         let (v, _) = read(text, ScanCsvOptions::default());
         assert_eq!(v.len(), 2);
         assert!(
-            matches!(&v[1], Err(CloudError::Csv { line: 3, reason }) if reason.contains("expected 4 columns"))
+            matches!(&v[1], Err(DataError::Csv { line: 3, reason }) if reason.contains("expected 4 columns"))
         );
         let (v, st) = read(
             text,
@@ -338,7 +341,7 @@ mod tests {
     fn backwards_error_or_skip() {
         let text = "stamp_s,r0,r1,r2\n2.0,1,1,1\n1.0,1,1,1\n2.0,1,1,1\n3.0,1,1,1\n";
         let (v, _) = read(text, ScanCsvOptions::default());
-        assert!(matches!(&v[1], Err(CloudError::Csv { line: 3, .. })));
+        assert!(matches!(&v[1], Err(DataError::Csv { line: 3, .. })));
         let (v, st) = read(
             text,
             ScanCsvOptions {

@@ -13,12 +13,12 @@
 //! otherwise). Barcodes missing from `Barcodes.dat` are false detections: they are passed on as
 //! unlabelled target detections (clutter, source `None`) and counted in [`MrclamSkips`].
 //!
-//! Bad input: a malformed or truncated line is [`SimError::Parse`] with its file and line number;
+//! Bad input: a malformed or truncated line is [`DataError::Parse`] with its file and line number;
 //! records whose time goes backwards, non-finite odometry or measurements, and the robot's own
 //! barcode are counted skips ([`MrclamSkips`]), never a panic.
 //!
 //! ```
-//! use quarry_sim::mrclam::{MrclamTexts, from_texts};
+//! use quarry_data::mrclam::{MrclamTexts, from_texts};
 //! let header = "# a\n# b\n# c\n# d\n";
 //! let barcodes = format!("{header}1 5\n2 14\n6 63\n");
 //! let landmarks = format!("{header}6 1.0 2.0 0.0 0.0\n");
@@ -36,7 +36,7 @@
 //! assert_eq!(f.landmark_obs.len(), 1);
 //! assert_eq!(f.target_obs, vec![[2.0, -0.2]]);
 //! assert_eq!(f.truth.target_obs_source, vec![Some(0)]); // target slot 0 = robot 2
-//! # Ok::<(), quarry_sim::SimError>(())
+//! # Ok::<(), quarry_data::DataError>(())
 //! ```
 
 use std::collections::BTreeMap;
@@ -45,7 +45,7 @@ use std::path::Path;
 use quarry_core::{LandmarkId, Pose2, wrap_angle};
 use serde::{Deserialize, Serialize};
 
-use crate::SimError;
+use crate::DataError;
 
 /// Counted skips: records that were dropped (or demoted to clutter) instead of failing the load.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -134,7 +134,7 @@ pub fn parse_table(
     text: &str,
     path: &str,
     cols: usize,
-) -> Result<Vec<(usize, Vec<f64>)>, SimError> {
+) -> Result<Vec<(usize, Vec<f64>)>, DataError> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -143,7 +143,7 @@ pub fn parse_table(
         }
         let fields: Vec<&str> = line.split_whitespace().collect();
         if fields.len() != cols {
-            return Err(SimError::Parse {
+            return Err(DataError::Parse {
                 path: path.to_string(),
                 line: i + 1,
                 reason: format!(
@@ -154,7 +154,7 @@ pub fn parse_table(
         }
         let mut row = Vec::with_capacity(cols);
         for f in fields {
-            let v: f64 = f.parse().map_err(|_| SimError::Parse {
+            let v: f64 = f.parse().map_err(|_| DataError::Parse {
                 path: path.to_string(),
                 line: i + 1,
                 reason: format!("not a number: {f:?}"),
@@ -166,11 +166,11 @@ pub fn parse_table(
     Ok(out)
 }
 
-fn as_id(v: f64, path: &str, line: usize, what: &str) -> Result<u32, SimError> {
+fn as_id(v: f64, path: &str, line: usize, what: &str) -> Result<u32, DataError> {
     if v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v < 1e6 {
         Ok(v as u32)
     } else {
-        Err(SimError::Parse {
+        Err(DataError::Parse {
             path: path.to_string(),
             line,
             reason: format!("{what} must be a non-negative integer, found {v}"),
@@ -218,7 +218,7 @@ fn interpolate(gt: &[Vec<f64>], t: f64) -> Option<Pose2> {
 }
 
 /// Builds the run of robot `robot` from file contents.
-pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, SimError> {
+pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, DataError> {
     let mut skips = MrclamSkips::default();
     // barcode -> subject
     let mut by_barcode: BTreeMap<u32, u32> = BTreeMap::new();
@@ -231,7 +231,7 @@ pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, SimE
     for (line, r) in parse_table(texts.landmarks, "Landmark_Groundtruth.dat", 5)? {
         let subject = as_id(r[0], "Landmark_Groundtruth.dat", line, "subject")?;
         if subject < 6 || !r[1].is_finite() || !r[2].is_finite() {
-            return Err(SimError::Parse {
+            return Err(DataError::Parse {
                 path: "Landmark_Groundtruth.dat".into(),
                 line,
                 reason: format!(
@@ -251,14 +251,14 @@ pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, SimE
             .collect();
         gts.insert(*n, monotone(rows, &mut skips));
     }
-    let own_gt = gts.get(&robot).ok_or_else(|| SimError::Io {
+    let own_gt = gts.get(&robot).ok_or_else(|| DataError::Io {
         path: format!("Robot{robot}_Groundtruth.dat"),
         reason: "ground truth of the driving robot is missing".into(),
     })?;
     let (gt_start, gt_end) = match (own_gt.first(), own_gt.last()) {
         (Some(a), Some(b)) => (a[0], b[0]),
         _ => {
-            return Err(SimError::Io {
+            return Err(DataError::Io {
                 path: format!("Robot{robot}_Groundtruth.dat"),
                 reason: "no ground-truth records".into(),
             });
@@ -279,7 +279,7 @@ pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, SimE
         .filter(|r| r[0] >= gt_start && r[0] <= gt_end)
         .collect();
     if odo.len() < 2 {
-        return Err(SimError::Io {
+        return Err(DataError::Io {
             path: odo_path,
             reason: "fewer than two odometry records inside the ground-truth span".into(),
         });
@@ -300,7 +300,7 @@ pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, SimE
     let target_robots: Vec<u32> = gts.keys().copied().filter(|&n| n != robot).collect();
     let slot_of = |subject: u32| target_robots.iter().position(|&n| n == subject);
     let t0 = odo[0][0];
-    let initial_pose = interpolate(own_gt, t0).ok_or_else(|| SimError::Io {
+    let initial_pose = interpolate(own_gt, t0).ok_or_else(|| DataError::Io {
         path: format!("Robot{robot}_Groundtruth.dat"),
         reason: "no ground truth at the first odometry time".into(),
     })?;
@@ -370,22 +370,22 @@ pub fn from_texts(texts: &MrclamTexts<'_>, robot: u32) -> Result<MrclamRun, SimE
     })
 }
 
-fn read(dir: &Path, name: &str) -> Result<String, SimError> {
+fn read(dir: &Path, name: &str) -> Result<String, DataError> {
     let p = dir.join(name);
-    let bytes = std::fs::read(&p).map_err(|e| SimError::Io {
+    let bytes = std::fs::read(&p).map_err(|e| DataError::Io {
         path: p.display().to_string(),
         reason: e.to_string(),
     })?;
-    String::from_utf8(bytes).map_err(|e| SimError::Io {
+    String::from_utf8(bytes).map_err(|e| DataError::Io {
         path: p.display().to_string(),
         reason: format!("not UTF-8 text: {e}"),
     })
 }
 
 /// Reads dataset directory `dir` (the 17 files of one MRCLAM dataset) for robot `robot` (1..=5).
-pub fn load(dir: &Path, robot: u32) -> Result<MrclamRun, SimError> {
+pub fn load(dir: &Path, robot: u32) -> Result<MrclamRun, DataError> {
     if !(1..=5).contains(&robot) {
-        return Err(SimError::Core(quarry_core::CoreError::invalid(
+        return Err(DataError::Core(quarry_core::CoreError::invalid(
             "robot",
             format!("MRCLAM robots are 1..=5, got {robot}"),
         )));
@@ -428,7 +428,7 @@ mod tests {
         ]
     }
 
-    fn run_of(t: &[String]) -> Result<MrclamRun, SimError> {
+    fn run_of(t: &[String]) -> Result<MrclamRun, DataError> {
         from_texts(
             &MrclamTexts {
                 barcodes: &t[0],
@@ -472,7 +472,7 @@ mod tests {
         let mut t = texts_owned();
         t[2] = format!("{H}100.0 0.5 0.1\r\n100.1 0.5\r\n");
         match run_of(&t) {
-            Err(SimError::Parse { line, path, .. }) => {
+            Err(DataError::Parse { line, path, .. }) => {
                 assert_eq!(line, 6);
                 assert!(path.contains("Odometry"));
             }
@@ -480,10 +480,10 @@ mod tests {
         }
         let mut t = texts_owned();
         t[3] = format!("{H}100.05 6x3 1.5 0.2\r\n");
-        assert!(matches!(run_of(&t), Err(SimError::Parse { line: 5, .. })));
+        assert!(matches!(run_of(&t), Err(DataError::Parse { line: 5, .. })));
         let mut t = texts_owned();
         t[3] = format!("{H}100.05 -3 1.5 0.2\r\n");
-        assert!(matches!(run_of(&t), Err(SimError::Parse { line: 5, .. })));
+        assert!(matches!(run_of(&t), Err(DataError::Parse { line: 5, .. })));
     }
 
     #[test]
@@ -507,10 +507,10 @@ mod tests {
     fn empty_inputs_are_errors() {
         let mut t = texts_owned();
         t[2] = H.to_string();
-        assert!(matches!(run_of(&t), Err(SimError::Io { .. })));
+        assert!(matches!(run_of(&t), Err(DataError::Io { .. })));
         let mut t = texts_owned();
         t[4] = H.to_string();
-        assert!(matches!(run_of(&t), Err(SimError::Io { .. })));
+        assert!(matches!(run_of(&t), Err(DataError::Io { .. })));
     }
 
     #[test]

@@ -1,0 +1,190 @@
+//! The one configuration convention of every tracker.
+//!
+//! Each tracker has a configuration type (`SlamotConfig`, `LidarPeopleConfig`, ...) and an enum
+//! of named presets. The convention:
+//! - `Default` is the paper's configuration, and is one of the presets;
+//! - [`TrackerConfig::preset`] gives the configuration of a named preset;
+//! - TOML is read *over a preset*: keys missing from the file keep that preset's values, unknown
+//!   keys are an error ([`TrackerConfig::from_toml`]); a top-level `preset = "name"` key in the
+//!   file chooses the base preset when the caller does not;
+//! - [`TrackerConfig::validate`] checks every field and every rule between fields, and is the
+//!   only place those rules are written. It is called once, where a configuration is read (the
+//!   TOML functions here) or where a tracker is built from one.
+//!
+//! Adding a preset is one variant (with its doc line) in the tracker's preset enum, its arm in
+//! the tracker's `preset()` and its name in `Preset::ALL`: all in the tracker's `config.rs`.
+//!
+//! ```
+//! use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
+//! use quarry_trackers::{PresetName, TrackerConfig};
+//! // TOML over the kf-gnn preset: one key changed, every other key from kf-gnn
+//! let cfg = LidarPeopleConfig::from_toml("kf_sigma_r = 0.05", Some(Preset::KfGnn))?;
+//! assert_eq!(cfg.preset, Preset::KfGnn);
+//! assert_eq!(cfg.kf_sigma_r, 0.05);
+//! // the file may name its preset itself
+//! let cfg = LidarPeopleConfig::from_toml("preset = \"literal\"", None)?;
+//! assert_eq!(cfg, LidarPeopleConfig::preset(Preset::Literal));
+//! // unknown keys and bad values are errors that name them
+//! assert!(LidarPeopleConfig::from_toml("kf_sigma_x = 1", None).is_err());
+//! assert!(LidarPeopleConfig::from_toml("kf_sigma_r = -1", None).is_err());
+//! assert_eq!(Preset::parse("kf-gnn")?, Preset::KfGnn);
+//! # Ok::<(), quarry_trackers::TrackerError>(())
+//! ```
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+use crate::TrackerError;
+
+/// A tracker's named presets: an enum with one variant per preset.
+pub trait PresetName: Copy + Eq + std::fmt::Debug + Send + Sync + 'static {
+    /// Every preset, the default (the paper's) first.
+    const ALL: &'static [Self];
+    /// The name a user types (`kf-gnn`, `paper`, ...): lower case, words joined by `-`.
+    fn name(self) -> &'static str;
+    /// One line saying what the preset is (shown by `--help`).
+    fn about(self) -> &'static str;
+    /// Which tracker the presets belong to (for error messages).
+    const TRACKER: &'static str;
+
+    /// The preset called `name` (`_` and `-` are interchangeable).
+    fn parse(name: &str) -> Result<Self, TrackerError> {
+        let norm = name.trim().replace('_', "-");
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|p| p.name() == norm)
+            .ok_or_else(|| TrackerError::UnknownPreset {
+                tracker: Self::TRACKER,
+                name: name.to_owned(),
+                expected: Self::ALL
+                    .iter()
+                    .map(|p| p.name())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
+    }
+}
+
+/// A tracker configuration following the crate's convention (see the [module docs](self)).
+pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOwned {
+    /// The tracker's preset enum.
+    type Preset: PresetName;
+    /// The tracker's name in messages (`slamot`, `lidar_people`, `rgbd_person`, ...).
+    const NAME: &'static str;
+
+    /// The configuration of a named preset (not validated: presets are valid by construction,
+    /// and a test checks it).
+    fn preset(p: Self::Preset) -> Self;
+
+    /// Checks every field and every rule between fields.
+    fn validate(&self) -> Result<(), TrackerError>;
+
+    /// Parses TOML laid over a preset and validates the result.
+    ///
+    /// The base is `preset` when given, else the file's top-level `preset = "name"` key, else
+    /// `Default`. Keys missing from the file keep the base's values (tables merge key by key);
+    /// an unknown key, a value of the wrong type or a value that fails [`validate`](Self::validate)
+    /// is an error. When both `preset` and the file's `preset` key are given and differ, that is
+    /// an error too (say one or the other).
+    fn from_toml(text: &str, preset: Option<Self::Preset>) -> Result<Self, TrackerError> {
+        let toml_err = |source| TrackerError::Toml {
+            tracker: Self::NAME,
+            source,
+        };
+        let mut user: toml::Table = toml::from_str(text).map_err(toml_err)?;
+        let named = match user.remove("preset") {
+            None => None,
+            Some(toml::Value::String(s)) => Some(Self::Preset::parse(&s)?),
+            Some(other) => {
+                return Err(TrackerError::config(
+                    Self::NAME,
+                    format!("`preset` must be a string naming a preset, got {other}"),
+                ));
+            }
+        };
+        let base = match (preset, named) {
+            (Some(a), Some(b)) if a != b => {
+                return Err(TrackerError::config(
+                    Self::NAME,
+                    format!(
+                        "the file says preset = {:?} but {:?} was asked for",
+                        b.name(),
+                        a.name()
+                    ),
+                ));
+            }
+            (Some(p), _) | (None, Some(p)) => Self::preset(p),
+            (None, None) => Self::default(),
+        };
+        let cfg = overlay(&base, user, Self::NAME)?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Reads a TOML file over a preset ([`from_toml`](Self::from_toml)); the error names the
+    /// file. Files over 1 MiB are refused (a configuration is a few kilobytes).
+    fn from_toml_file(
+        path: &std::path::Path,
+        preset: Option<Self::Preset>,
+    ) -> Result<Self, TrackerError> {
+        const MAX: u64 = 1 << 20;
+        let meta = std::fs::metadata(path)
+            .map_err(|e| TrackerError::config(Self::NAME, format!("{}: {e}", path.display())))?;
+        if meta.len() > MAX {
+            return Err(TrackerError::config(
+                Self::NAME,
+                format!(
+                    "{}: {} bytes is too large for a configuration (at most {MAX})",
+                    path.display(),
+                    meta.len()
+                ),
+            ));
+        }
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| TrackerError::config(Self::NAME, format!("{}: {e}", path.display())))?;
+        Self::from_toml(&text, preset).map_err(|e| match e {
+            TrackerError::Config { tracker, reason } => TrackerError::Config {
+                tracker,
+                reason: format!("{}: {reason}", path.display()),
+            },
+            other => other,
+        })
+    }
+
+    /// The configuration as TOML text (every key; reads back to the same value).
+    fn to_toml(&self) -> Result<String, TrackerError> {
+        toml::to_string(self).map_err(|e| TrackerError::config(Self::NAME, e.to_string()))
+    }
+}
+
+/// `user` laid over `base`: tables merge key by key (recursively), any other value replaces.
+fn overlay<C: TrackerConfig>(
+    base: &C,
+    user: toml::Table,
+    tracker: &'static str,
+) -> Result<C, TrackerError> {
+    let toml::Value::Table(mut merged) = toml::Value::try_from(base)
+        .map_err(|e| TrackerError::config(tracker, format!("preset to TOML: {e}")))?
+    else {
+        return Err(TrackerError::config(
+            tracker,
+            "a configuration must serialise to a TOML table",
+        ));
+    };
+    merge(&mut merged, user);
+    toml::Value::Table(merged)
+        .try_into()
+        .map_err(|source| TrackerError::Toml { tracker, source })
+}
+
+fn merge(base: &mut toml::Table, user: toml::Table) {
+    for (k, v) in user {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(u)) => merge(b, u),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
