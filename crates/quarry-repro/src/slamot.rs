@@ -1,0 +1,1 @@
+//! Placeholder while the restructure moves the slamot experiments here.
