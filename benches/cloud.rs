@@ -24,7 +24,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use quarry::cloud::background::{ChiSquareBackground, ChiSquareConfig, VarianceChi2Test};
 use quarry::cloud::cluster::{MeanShift, Seeding};
 use quarry::cloud::icp::{Correspondence, Icp2d, ModelShape};
-use quarry::cloud::net::wire::{Header, Kind, Message, Payload};
+use quarry::net::proto::wire::{Header, Kind, Message, Payload};
 use quarry::core::{Point2, PolarScan, Pose2, Registration2, ScanGeometry, SensorId, TimeUs};
 
 fn bench_data() -> Option<PathBuf> {

@@ -27,9 +27,10 @@ use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_ma
 use quarry::cloud::background::ChiSquareBackground;
 use quarry::core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
+use quarry::net::AssemblerFusion;
 use quarry::trackers::lidar_people::{
-    AssemblerFusion, ClientPipeline, DefaultLidarTracker, DynamicScan, LidarPeopleConfig,
-    ServerPipeline, background_of,
+    ClientPipeline, DefaultLidarTracker, DynamicScan, LidarPeopleConfig, ServerPipeline,
+    background_of,
 };
 
 type Server = ServerPipeline<AssemblerFusion, DefaultLidarTracker>;

@@ -7,7 +7,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry::sim::lidar_room::Scenario;
-use quarry::trackers::lidar_people::{Calibration, LidarPeopleConfig, calibrate_scenario};
+use quarry::repro::lidar::calibrate_scenario;
+use quarry::trackers::lidar_people::{Calibration, LidarPeopleConfig};
 
 fn main() {
     let cfg = LidarPeopleConfig {

@@ -8,9 +8,8 @@
 
 use quarry::core::TimeUs;
 use quarry::sim::lidar_room::Scenario;
-use quarry::trackers::lidar_people::{
-    LidarPeopleConfig, evaluate_paper003, gate_of, run_room_default,
-};
+use quarry::repro::lidar::{evaluate_paper003, run_room_default};
+use quarry::trackers::lidar_people::{LidarPeopleConfig, gate_of};
 use std::collections::{BTreeMap, BTreeSet};
 
 fn main() {

@@ -10,7 +10,8 @@
 use quarry::core::TimeUs;
 use quarry::net::{LocalBus, run_sim_node, run_sim_server};
 use quarry::sim::lidar_room::{Scenario, SpeedBand};
-use quarry::trackers::lidar_people::{LidarPeopleConfig, run_room_default};
+use quarry::repro::lidar::run_room_default;
+use quarry::trackers::lidar_people::LidarPeopleConfig;
 use std::time::Duration;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -4,11 +4,11 @@
 //! Run: `cargo run --release --example lidar_recorded -- ../shared/data/leg-tracker positive_1`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use quarry::cloud::csv_scans::{ScanCsvOptions, parse_scan_meta, read_scans};
+use quarry::data::leg_labels::parse_legs_csv;
+use quarry::data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
+use quarry::repro::lidar::score_labelled;
 use quarry::core::Pose2;
-use quarry::trackers::lidar_people::{
-    LidarPeopleConfig, parse_legs_csv, run_recorded, score_labelled,
-};
+use quarry::trackers::lidar_people::{LidarPeopleConfig, run_recorded};
 use std::path::PathBuf;
 
 fn main() {

@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quarry_cloud::net::wire::Message;
+use quarry_net::proto::wire::Message;
 use quarry_net::{SimMessage, TrackMessage};
 
 fuzz_target!(|data: &[u8]| {

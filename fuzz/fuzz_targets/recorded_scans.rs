@@ -4,9 +4,11 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quarry_cloud::csv_scans::{RowPolicy, ScanCsvOptions, ScanCsvReader};
+use quarry_data::leg_labels::parse_legs_csv;
+use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, ScanCsvReader};
+use quarry_repro::lidar::score_labelled;
 use quarry_core::{Pose2, ScanGeometry};
-use quarry_trackers::lidar_people::{LidarPeopleConfig, parse_legs_csv, run_recorded, score_labelled};
+use quarry_trackers::lidar_people::{LidarPeopleConfig, run_recorded};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quarry_cloud::csv_scans::{RowPolicy, ScanCsvOptions, ScanCsvReader};
+use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, ScanCsvReader};
 use quarry_core::ScanGeometry;
 
 fuzz_target!(|data: &[u8]| {
@@ -18,5 +18,5 @@ fuzz_target!(|data: &[u8]| {
             }
         }
     }
-    let _ = quarry_cloud::csv_scans::parse_scan_meta(&String::from_utf8_lossy(data), "a");
+    let _ = quarry_data::scans_csv::parse_scan_meta(&String::from_utf8_lossy(data), "a");
 });

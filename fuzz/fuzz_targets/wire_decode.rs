@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quarry_cloud::net::wire::Message;
-use quarry_cloud::net::{FrameAssembler, FrameConfig, SensorConfig};
+use quarry_net::proto::wire::Message;
+use quarry_net::proto::{FrameAssembler, FrameConfig, SensorConfig};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 
 fuzz_target!(|data: &[u8]| {

@@ -11,6 +11,25 @@ pub type CmdError = Box<dyn std::error::Error + Send + Sync + 'static>;
 /// What a subcommand returns.
 pub type CmdResult = Result<(), CmdError>;
 
+/// A file that could not be read or written, with the path (the I/O error stays the source).
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {source}")]
+pub struct PathError {
+    /// The file.
+    pub path: String,
+    /// What the OS said.
+    #[source]
+    pub source: std::io::Error,
+}
+
+/// `map_err(at(path))`: an I/O error on `path` as a [`PathError`].
+pub fn at(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> PathError + '_ {
+    move |source| PathError {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
 /// Where and how a subcommand prints its result (passed to every subcommand as `&Output`;
 /// deliberately not `Copy` so that it can grow, e.g. a verbosity level or an output directory).
 #[derive(Debug, Clone)]
@@ -36,7 +55,11 @@ impl Output {
         let mut msg = e.to_string();
         let mut src = e.source();
         while let Some(s) = src {
-            let _ = write!(msg, ": {s}");
+            // a message that already says its source (`{path}: {source}`) is not repeated
+            let text = s.to_string();
+            if !msg.contains(&text) {
+                let _ = write!(msg, ": {text}");
+            }
             src = s.source();
         }
         eprintln!("error: {msg}");

@@ -3,8 +3,6 @@
 use quarry_core::{CoreError, SensorId};
 use thiserror::Error;
 
-use crate::net::wire::WireError;
-
 /// Everything that can go wrong in quarry-cloud.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
@@ -12,9 +10,6 @@ pub enum CloudError {
     /// A shared error kind (non-finite input, empty input, wrong size, bad parameter, ...).
     #[error(transparent)]
     Core(#[from] CoreError),
-    /// A malformed wire message (see [`crate::net::wire`]).
-    #[error("wire message: {0}")]
-    Wire(#[from] WireError),
     /// Fewer points than an algorithm needs (e.g. `model→data` ICP with a cluster smaller than
     /// the model, spec 003 §2.6).
     #[error("too few points in {what}: need {needed}, got {got}")]
@@ -25,14 +20,6 @@ pub enum CloudError {
         needed: usize,
         /// How many were given.
         got: usize,
-    },
-    /// A malformed recorded-scan CSV (or its geometry file).
-    #[error("scan CSV line {line}: {reason}")]
-    Csv {
-        /// 1-based line number (the header is line 1; 0 when not tied to a line).
-        line: u64,
-        /// What was wrong.
-        reason: String,
     },
     /// Reading a file failed.
     #[error("I/O error: {0}")]

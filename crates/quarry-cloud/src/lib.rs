@@ -1,8 +1,9 @@
 //! # quarry-cloud
 //!
 //! 2-D point clouds for laser people tracking (spec 003): polar scans, a kd-tree index,
-//! the chi-square background model, MeanShift, ICP, scanner calibration and the
-//! time-synchronised fusion of scans into frames.
+//! the chi-square background model, MeanShift, ICP and scanner calibration. (The
+//! time-synchronised fusion of scans into frames, with its wire format, is network code and
+//! lives in quarry-net's sans-IO `proto` module; the recorded-scan CSV reader is in quarry-data.)
 //!
 //! | module | contents |
 //! |---|---|
@@ -13,8 +14,6 @@
 //! | [`icp`] | [`icp::rigid_2d`] (closed form) and [`icp::Icp2d`] (trimmed point-to-point ICP) |
 //! | [`contour`] | [`contour::EllipseModel`], the human contour model of §2.6 |
 //! | [`calib`] | scanner extrinsics from static backgrounds, or from configured poses |
-//! | [`net`] | sans-IO [`net::wire`] format, [`net::ClockSync`], [`net::FrameAssembler`] |
-//! | [`csv_scans`] | the recorded-scan CSV reader (`stamp_s,r0..r{N-1}`) |
 //!
 //! Every public function that takes data returns `Result<_, CloudError>` (the quarry-core trait
 //! implementations return `CoreError`); nothing panics on bad input.
@@ -52,11 +51,9 @@ pub mod background;
 pub mod calib;
 pub mod cluster;
 pub mod contour;
-pub mod csv_scans;
 pub mod error;
 pub mod icp;
 pub mod kd;
-pub mod net;
 pub mod scan;
 
 pub use error::CloudError;

@@ -5,6 +5,7 @@
 //! | module | reads | feeds |
 //! |---|---|---|
 //! | [`mrclam`] | the UTIAS MRCLAM datasets (odometry, barcoded measurements, Vicon truth) | `quarry_trackers::slamot` |
+//! | [`leg_labels`] | the leg-tracker recordings' labels (leg centroids per scan) | scoring the lidar tracker |
 //! | [`scans_csv`] | recorded 2-D laser scans, `stamp_s,r0..r{N-1}` CSV with a `scan_meta.json` geometry | `quarry_trackers::lidar_people` |
 //!
 //! Every reader returns [`DataError`] naming the file and the line on malformed or truncated
@@ -26,6 +27,7 @@
 //! ```
 
 mod error;
+pub mod leg_labels;
 pub mod mrclam;
 pub mod scans_csv;
 

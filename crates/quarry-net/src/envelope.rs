@@ -24,7 +24,7 @@
 //! Decoding checks every length against the buffer before reading and never panics.
 
 use crate::error::EnvelopeError;
-use quarry_cloud::net::wire::crc32;
+use crate::proto::wire::crc32;
 use quarry_core::{SensorId, TimeUs};
 use quarry_trackers::lidar_people::LidarTrack;
 

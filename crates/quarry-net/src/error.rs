@@ -1,6 +1,6 @@
 //! The crate's error type.
 
-use quarry_cloud::net::wire::WireError;
+use crate::proto::wire::WireError;
 use quarry_trackers::TrackerError;
 use thiserror::Error;
 
@@ -19,6 +19,13 @@ pub enum NetError {
     /// The tracker, the background model or the fusion failed.
     #[error(transparent)]
     Tracker(#[from] TrackerError),
+    /// A shared error kind (bad parameter, non-finite value, ...), e.g. from the frame
+    /// assembler.
+    #[error(transparent)]
+    Core(#[from] quarry_core::CoreError),
+    /// A recorded scan source could not be read.
+    #[error(transparent)]
+    Data(#[from] quarry_data::DataError),
     /// A bad option or configuration.
     #[error("config: {0}")]
     Config(String),

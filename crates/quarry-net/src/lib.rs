@@ -2,18 +2,26 @@
 //! dynamic points of their scans, a server fuses them by timestamp, tracks, and publishes the
 //! tracks.
 //!
+//! - [`proto`]: the sans-IO protocol: the §7.1 wire format, clock synchronisation and the
+//!   server's frame assembly ([`proto::FrameAssembler`]); no sockets, no zenoh;
+//! - [`AssemblerFusion`]: quarry-trackers' fusion stage over the frame assembler and the wire
+//!   codec;
 //! - [`Transport`]: publish/subscribe of byte messages on `/`-separated keys. [`LocalBus`] is
 //!   the in-process implementation (channels, for the simulator and tests); `ZenohTransport`
 //!   (feature `zenoh`) runs over zenoh 1.x sessions in peer mode with explicit TCP endpoints.
-//! - [`node`]: [`run_sim_node`] (virtual time: simulated scanner K with the room's network
-//!   model, reproducible) and [`run_wall_node`] (real time, §7.3 clock sync, over a
+//! - [`node`]: `run_sim_node` (feature `sim`; virtual time: simulated scanner K with the room's
+//!   network model, reproducible) and [`run_wall_node`] (real time, §7.3 clock sync, over a
 //!   [`ScanSource`]: the simulated room or a recorded CSV).
-//! - [`server`]: [`run_sim_server`] and [`run_wall_server`], both over quarry-cloud's
-//!   `FrameAssembler` and the tracker of `quarry_trackers::lidar_people`.
+//! - [`server`]: `run_sim_server` (feature `sim`) and [`run_wall_server`], both over the
+//!   frame assembler and the tracker of `quarry_trackers::lidar_people`.
 //! - [`envelope`]: the virtual-time step and end markers and the track message (decoders
 //!   fuzzed in `fuzz/`).
 //!
+//! Features: `zenoh` (the zenoh transport), `sim` (simulated nodes and the virtual-time server
+//! over quarry-sim's room; the example below needs it).
+//!
 //! ```
+//! # #[cfg(feature = "sim")] {
 //! use quarry_net::{LocalBus, run_sim_node, run_sim_server};
 //! use quarry_sim::lidar_room::{Scenario, SpeedBand};
 //! use quarry_trackers::lidar_people::LidarPeopleConfig;
@@ -34,16 +42,18 @@
 //! for n in nodes {
 //!     n.join().expect("node thread")?;
 //! }
-//! // the same frames and tracks as the in-process run of the scenario
-//! let local = quarry_trackers::lidar_people::run_room_default(sc, &cfg, &mut |_| {})?;
-//! assert_eq!(run.frames_tracked, local.frames_tracked);
-//! assert_eq!(run.tracks, local.tracks);
-//! # Ok::<(), quarry_net::NetError>(())
+//! // about 20 frames of 50 ms, each fused from the three nodes' scans (the same frames and tracks
+//! // as quarry-repro's in-process run of the scenario: tested there)
+//! assert!(run.frames_tracked >= 15, "{}", run.frames_tracked);
+//! # }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 pub mod envelope;
 mod error;
+mod fusion;
 pub mod node;
+pub mod proto;
 pub mod server;
 pub mod transport;
 #[cfg(feature = "zenoh")]
@@ -51,10 +61,13 @@ mod zenoh_transport;
 
 pub use envelope::{EndOfStream, SimMessage, SimStep, TrackMessage};
 pub use error::{EnvelopeError, NetError};
-pub use node::{
-    CsvSource, NodeSummary, ScanSource, SimSource, WallNodeOptions, run_sim_node, run_wall_node,
-};
-pub use server::{SensorSpec, ServerRun, WallServerOptions, run_sim_server, run_wall_server};
+pub use fusion::{AssemblerFusion, encode_dynamic};
+pub use node::{CsvSource, NodeSummary, ScanSource, WallNodeOptions, run_wall_node};
+#[cfg(feature = "sim")]
+pub use node::{SimSource, run_sim_node};
+#[cfg(feature = "sim")]
+pub use server::run_sim_server;
+pub use server::{SensorSpec, ServerRun, WallServerOptions, run_wall_server};
 pub use transport::{LocalBus, Received, Subscription, Transport, key_matches, keys};
 #[cfg(feature = "zenoh")]
 pub use zenoh_transport::{ZenohOptions, ZenohTransport};

@@ -15,15 +15,14 @@
 use crate::NetError;
 use crate::envelope::{EndOfStream, SimMessage, SimStep};
 use crate::transport::{Subscription, Transport, keys};
-use quarry_cloud::csv_scans::ScanCsvReader;
-use quarry_cloud::net::ClockSync;
-use quarry_cloud::net::SyncMode;
-use quarry_cloud::net::wire::{Header, Hello, Kind, Message, Payload};
+use crate::fusion::encode_dynamic;
+use crate::proto::wire::{Header, Hello, Kind, Message, Payload};
+use crate::proto::{ClockSync, SyncMode};
 use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
+use quarry_data::scans_csv::ScanCsvReader;
+#[cfg(feature = "sim")]
 use quarry_sim::lidar_room::{RoomEvent, Runner, Scenario};
-use quarry_trackers::lidar_people::{
-    ClientPipeline, LidarPeopleConfig, background_of, encode_dynamic,
-};
+use quarry_trackers::lidar_people::{ClientPipeline, LidarPeopleConfig, background_of};
 use serde::Serialize;
 use std::io::Read;
 use std::time::{Duration, Instant};
@@ -38,7 +37,9 @@ pub trait ScanSource {
     fn next_scan(&mut self) -> Result<Option<(TimeUs, PolarScan)>, NetError>;
 }
 
-/// Scanner `k` of a simulated room: its scans with their simulated capture times.
+/// Scanner `k` of a simulated room: its scans with their simulated capture times (feature
+/// `sim`).
+#[cfg(feature = "sim")]
 pub struct SimSource {
     runner: Runner,
     k: usize,
@@ -46,6 +47,7 @@ pub struct SimSource {
     geometry: ScanGeometry,
 }
 
+#[cfg(feature = "sim")]
 impl SimSource {
     /// Scanner `k` (0-based) of `scenario`.
     pub fn new(scenario: Scenario, k: usize) -> Result<Self, NetError> {
@@ -83,6 +85,7 @@ impl SimSource {
     }
 }
 
+#[cfg(feature = "sim")]
 impl ScanSource for SimSource {
     fn sensor(&self) -> SensorId {
         self.id
@@ -95,7 +98,7 @@ impl ScanSource for SimSource {
     }
 }
 
-/// A recorded scan CSV (`stamp_s,r0..r{N-1}`, see quarry-cloud's `csv_scans`), replayed at the
+/// A recorded scan CSV (`stamp_s,r0..r{N-1}`, see quarry-data's `scans_csv`), replayed at the
 /// pace of its stamps. Malformed rows are skipped and counted as the reader's options say.
 pub struct CsvSource<R: Read> {
     reader: ScanCsvReader<R>,
@@ -113,7 +116,7 @@ impl<R: Read> CsvSource<R> {
         }
     }
     /// The reader's counters (rows, skipped rows, invalid beams).
-    pub fn stats(&self) -> quarry_cloud::csv_scans::ScanCsvStats {
+    pub fn stats(&self) -> quarry_data::scans_csv::ScanCsvStats {
         self.reader.stats()
     }
 }
@@ -231,7 +234,8 @@ fn trace_clock() -> f64 {
 
 /// Virtual-time node: scanner `k` of `scenario`, background model of `cfg`. Publishes one
 /// [`SimStep`] per captured scan and an [`EndOfStream`]; waits up to `wait_server` for the
-/// server's beacon first.
+/// server's beacon first (feature `sim`).
+#[cfg(feature = "sim")]
 pub fn run_sim_node(
     transport: &dyn Transport,
     scenario: Scenario,

@@ -1,5 +1,5 @@
-//! `lidar-server`: subscribes to the nodes, fuses their scans into frames with quarry-cloud's
-//! [`FrameAssembler`](quarry_cloud::net::FrameAssembler) (spec §7.2: late, duplicated,
+//! `lidar-server`: subscribes to the nodes, fuses their scans into frames with the
+//! [`FrameAssembler`](crate::proto::FrameAssembler) (spec §7.2: late, duplicated,
 //! out-of-order, multi-part and missing scans, unsynchronised and future stamps, restarts,
 //! liveness), tracks every closed frame and publishes its tracks.
 //!
@@ -14,12 +14,14 @@
 use crate::NetError;
 use crate::envelope::{SimMessage, SimStep, TrackMessage};
 use crate::transport::{Transport, keys, sensor_of_key};
-use quarry_cloud::net::FusionStats;
-use quarry_cloud::net::wire::{Header, Kind, Message, Payload};
+use crate::proto::FusionStats;
+use crate::proto::wire::{Header, Kind, Message, Payload};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
+#[cfg(feature = "sim")]
 use quarry_sim::lidar_room::FRAME_US;
+use crate::fusion::AssemblerFusion;
 use quarry_trackers::lidar_people::{
-    AssemblerFusion, DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
+    DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
 };
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
@@ -183,6 +185,7 @@ fn note_bye(key: &str, ids: &[SensorId], byes: &mut [bool]) {
     }
 }
 
+#[cfg(feature = "sim")]
 #[derive(Default)]
 struct NodeIn {
     next: u32,
@@ -191,6 +194,7 @@ struct NodeIn {
     end_steps: Option<u32>,
 }
 
+#[cfg(feature = "sim")]
 impl NodeIn {
     fn done(&self) -> bool {
         self.end_steps.is_some_and(|n| self.next >= n)
@@ -206,7 +210,8 @@ impl NodeIn {
 
 /// Virtual-time server for `sensors` (in the scenario's scanner order) and a scenario ending
 /// at `t_end`. Returns once every node has sent its end marker and every event is processed;
-/// fails with [`NetError::Timeout`] when nothing arrives for `idle_timeout`.
+/// fails with [`NetError::Timeout`] when nothing arrives for `idle_timeout`. (Feature `sim`.)
+#[cfg(feature = "sim")]
 pub fn run_sim_server(
     transport: &dyn Transport,
     sensors: &[SensorSpec],

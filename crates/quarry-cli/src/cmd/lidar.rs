@@ -4,18 +4,22 @@
 //! band), tracked by the chosen preset, scored with the paper's success rate and the standard
 //! MOT metrics.
 
-use crate::output::{CmdResult, Output};
+use crate::config_args::ConfigArgs;
+use crate::output::{CmdError, CmdResult, Output, at};
 use crate::progress;
 use clap::Args;
 use plotters::prelude::*;
-use quarry_cloud::csv_scans::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_core::{Point2, Pose2, TimeUs};
+use quarry_data::leg_labels::parse_legs_csv;
+use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
+use quarry_repro::lidar::{
+    self as repro, EvalFrame, LabelledError, Paper003Metrics, RoomRun, score_labelled,
+};
 use quarry_sim::lidar_room::{
     ClockProfile, GtWriter, NetworkModel, Obstacle, Room, ScannerSim, Scenario, SpeedBand,
 };
-use quarry_trackers::lidar_people::{
-    self, EvalFrame, LidarPeopleConfig, LidarTrack, Paper003Metrics, Preset, RoomRun,
-};
+use quarry_trackers::PresetName;
+use quarry_trackers::lidar_people::{self, LidarPeopleConfig, LidarTrack, Preset};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -71,12 +75,9 @@ pub struct LidarArgs {
     /// Seed (evaluation seeds are 1-5, tuning seeds 101-105).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Preset: literal, faithful (default) or kf-gnn.
-    #[arg(long, default_value = "faithful")]
-    pub preset: String,
-    /// TOML configuration (missing keys take the preset's values).
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    /// --preset (literal, faithful = default, kf-gnn) and --config FILE.toml over it.
+    #[command(flatten)]
+    pub cfg: ConfigArgs<Preset>,
     /// Output directory (tracks.csv, tracks_mot.txt, gt_people.csv, plot.png, metrics.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -151,36 +152,6 @@ pub struct LidarSummary {
     pub calibration: Option<lidar_people::CalibrationReport>,
 }
 
-fn parse_band(s: &str) -> Result<SpeedBand, String> {
-    SpeedBand::parse(s).map_err(|e| e.to_string())
-}
-
-fn load_config(args: &LidarArgs) -> Result<LidarPeopleConfig, String> {
-    preset_config(&args.preset, args.config.as_deref())
-}
-
-/// The configuration of preset `preset`, with the keys of the TOML file `config` (if any) laid
-/// over it (missing keys keep the preset's values). `quarry lidar`, `lidar-node` and
-/// `lidar-server` all load their configuration through this.
-pub(crate) fn preset_config(
-    preset: &str,
-    config: Option<&std::path::Path>,
-) -> Result<LidarPeopleConfig, String> {
-    let preset = Preset::parse(preset).map_err(|e| e.to_string())?;
-    let mut cfg = LidarPeopleConfig::preset(preset);
-    if let Some(p) = config {
-        let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
-        let base = toml::Value::try_from(&cfg).map_err(|e| e.to_string())?;
-        let mut table = base.as_table().cloned().unwrap_or_default();
-        let user: toml::Table = text.parse().map_err(|e| format!("{}: {e}", p.display()))?;
-        for (k, v) in user {
-            table.insert(k, v);
-        }
-        cfg = LidarPeopleConfig::from_toml(&toml::to_string(&table).map_err(|e| e.to_string())?)
-            .map_err(|e| e.to_string())?;
-    }
-    Ok(cfg)
-}
 
 /// Runs one simulated band and returns the summary (used by `quarry demo` too).
 pub fn run_sim_band(
@@ -190,7 +161,7 @@ pub fn run_sim_band(
     seed: u64,
     cfg: &LidarPeopleConfig,
     out: &Output,
-) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), String> {
+) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), CmdError> {
     run_sim_variant(band, people, frames, seed, cfg, out, None, None)
 }
 
@@ -206,7 +177,7 @@ pub fn run_sim_variant(
     out: &Output,
     network: Option<NetworkModel>,
     clock: Option<ClockProfile>,
-) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), String> {
+) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), CmdError> {
     let duration = 7.0 + frames as f64 * cfg.frame_period_s + 0.3;
     let sc = Scenario::band(band, people, seed).with_duration(duration);
     run_sim_scenario(sc, band.name(), frames, cfg, out, network, clock)
@@ -222,7 +193,7 @@ fn run_sim_scenario(
     out: &Output,
     network: Option<NetworkModel>,
     clock: Option<ClockProfile>,
-) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), String> {
+) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), CmdError> {
     if let Some(n) = network {
         sc = sc.with_network(n);
     }
@@ -235,17 +206,15 @@ fn run_sim_scenario(
         indicatif::ProgressBar::hidden()
     };
     let mut on_progress = |f: f64| pb.set_position((f * 1000.0) as u64);
-    let run = lidar_people::run_room_default(sc.clone(), cfg, &mut on_progress)
-        .map_err(|e| e.to_string())?;
+    let run = repro::run_room_default(sc.clone(), cfg, &mut on_progress)?;
     pb.finish_and_clear();
     let window = run.eval_window(TimeUs(7_000_000), frames);
-    let m = lidar_people::evaluate_paper003(
+    let m = repro::evaluate_paper003(
         &window,
         &lidar_people::gate_of(cfg),
         cfg.min_num_point,
         cfg.d_match,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let n_scans = run.gt.len() as f64 * 2.0 * sc.scanners.len() as f64;
     let summary = LidarSummary {
         preset: cfg.preset.name().into(),
@@ -270,14 +239,12 @@ fn run_sim_scenario(
 }
 
 /// Entry point of `quarry lidar`.
-pub fn run(args: &LidarArgs, out: &Output) -> CmdResult {
-    run_inner(args, out).map_err(Into::into)
-}
-
-fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
-    let mut cfg = load_config(args)?;
+pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
+    let mut cfg: LidarPeopleConfig = args.cfg.load()?;
     if let Some(c) = &args.calibration {
-        cfg.calibration = lidar_people::Calibration::parse(c).map_err(|e| e.to_string())?;
+        cfg.calibration = lidar_people::Calibration::parse(c)?;
+        // the flag changes a validated configuration: check its cross-field rules again
+        quarry_trackers::TrackerConfig::validate(&cfg)?;
     }
     if let Some(scans) = &args.scans {
         if cfg.calibration == lidar_people::Calibration::Icp {
@@ -295,14 +262,12 @@ fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
         .network
         .as_deref()
         .map(NetworkModel::parse)
-        .transpose()
-        .map_err(|e| e.to_string())?;
+        .transpose()?;
     let clock = args
         .clock
         .as_deref()
         .map(ClockProfile::parse)
-        .transpose()
-        .map_err(|e| e.to_string())?;
+        .transpose()?;
     let (summary, run, window, sc) = if let Some(name) = &args.scenario {
         let sc =
             Scenario::by_name(name, args.seed).map_err(|e| format!("--scenario {name}: {e}"))?;
@@ -314,7 +279,7 @@ fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
         };
         run_sim_scenario(sc, band, args.frames, &cfg, output, network, clock)?
     } else {
-        let band = parse_band(&args.band)?;
+        let band = SpeedBand::parse(&args.band)?;
         run_sim_variant(
             band,
             args.people,
@@ -327,17 +292,19 @@ fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
         )?
     };
     if let Some(out) = &args.out {
-        std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        std::fs::create_dir_all(out).map_err(at(out))?;
         write_tracks(&out.join("tracks.csv"), &run.tracks)?;
         write_mot(&out.join("tracks_mot.txt"), &run.tracks)?;
-        let f = std::fs::File::create(out.join("gt_people.csv")).map_err(|e| e.to_string())?;
+        let gt_path = out.join("gt_people.csv");
+        let f = std::fs::File::create(&gt_path).map_err(at(&gt_path))?;
         let names: Vec<&str> = sc.scanners.iter().map(|s| s.name.as_str()).collect();
-        let mut w = GtWriter::new(std::io::BufWriter::new(f), &names).map_err(|e| e.to_string())?;
+        let mut w = GtWriter::new(std::io::BufWriter::new(f), &names).map_err(at(&gt_path))?;
         for g in &run.gt {
-            w.write(g).map_err(|e| e.to_string())?;
+            w.write(g).map_err(at(&gt_path))?;
         }
-        let js = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-        std::fs::write(out.join("metrics.json"), js).map_err(|e| e.to_string())?;
+        let js = serde_json::to_string_pretty(&summary)?;
+        let mpath = out.join("metrics.json");
+        std::fs::write(&mpath, js).map_err(at(&mpath))?;
         let trajs = trajectories(&run.tracks);
         let gt_trajs = gt_trajectories(&window);
         plot_room(
@@ -349,19 +316,17 @@ fn run_inner(args: &LidarArgs, output: &Output) -> Result<(), String> {
             &gt_trajs,
         )?;
     }
-    output
-        .emit(&summary, || {
-            let mut t = summary_text(&summary);
-            if let Some(out) = &args.out {
-                let _ = writeln!(
-                    t,
-                    "wrote tracks.csv, tracks_mot.txt, gt_people.csv, metrics.json, plot.png to {}",
-                    out.display()
-                );
-            }
-            t
-        })
-        .map_err(|e| e.to_string())
+    output.emit(&summary, || {
+        let mut t = summary_text(&summary);
+        if let Some(out) = &args.out {
+            let _ = writeln!(
+                t,
+                "wrote tracks.csv, tracks_mot.txt, gt_people.csv, metrics.json, plot.png to {}",
+                out.display()
+            );
+        }
+        t
+    })
 }
 
 /// The JSON summary of a `--scans` run.
@@ -394,7 +359,7 @@ pub struct RecordedSummary {
     /// Tracks living at least 1 s.
     pub tracks_over_1s: usize,
     /// Position error against --legs, if given.
-    pub labelled: Option<lidar_people::LabelledError>,
+    pub labelled: Option<LabelledError>,
     /// Tracker time per scan, ms.
     pub ms_per_frame: f64,
     /// Background time per scan, ms.
@@ -406,7 +371,7 @@ fn run_recorded_cmd(
     scans: &Path,
     cfg: &LidarPeopleConfig,
     output: &Output,
-) -> Result<(), String> {
+) -> CmdResult {
     let stem = scans
         .file_stem()
         .and_then(|s| s.to_str())
@@ -421,8 +386,7 @@ fn run_recorded_cmd(
             .unwrap_or_else(|| Path::new("."))
             .join("scan_meta.json")
     });
-    let meta_text =
-        std::fs::read_to_string(&meta).map_err(|e| format!("{}: {e}", meta.display()))?;
+    let meta_text = std::fs::read_to_string(&meta).map_err(at(&meta))?;
     let geometry =
         parse_scan_meta(&meta_text, &key).map_err(|e| format!("{}: {e}", meta.display()))?;
     let policy = if args.skip_bad_rows {
@@ -440,17 +404,12 @@ fn run_recorded_cmd(
     if polar.is_empty() {
         return Err(format!("{}: no scans", scans.display()));
     }
-    let run = lidar_people::run_recorded(cfg, &geometry, Pose2::default(), &polar, 3.0)
-        .map_err(|e| e.to_string())?;
+    let run = lidar_people::run_recorded(cfg, &geometry, Pose2::default(), &polar, 3.0)?;
     let labelled = match &args.legs {
         Some(p) => {
-            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
-            let labels =
-                lidar_people::parse_legs_csv(&text).map_err(|e| format!("{}: {e}", p.display()))?;
-            Some(
-                lidar_people::score_labelled(&run, &labels, cfg.d_match)
-                    .map_err(|e| e.to_string())?,
-            )
+            let text = std::fs::read_to_string(p).map_err(at(p))?;
+            let labels = parse_legs_csv(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+            Some(score_labelled(&run, &labels, cfg.d_match)?)
         }
         None => None,
     };
@@ -479,7 +438,7 @@ fn run_recorded_cmd(
         client_ms_per_scan: 1e3 * run.client_seconds / n,
     };
     if let Some(out) = &args.out {
-        std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        std::fs::create_dir_all(out).map_err(at(out))?;
         let rows: Vec<(u64, TimeUs, Vec<LidarTrack>)> = run
             .frames
             .iter()
@@ -488,8 +447,9 @@ fn run_recorded_cmd(
             .collect();
         write_tracks(&out.join("tracks.csv"), &rows)?;
         write_mot(&out.join("tracks_mot.txt"), &rows)?;
-        let js = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-        std::fs::write(out.join("metrics.json"), js).map_err(|e| e.to_string())?;
+        let js = serde_json::to_string_pretty(&summary)?;
+        let mpath = out.join("metrics.json");
+        std::fs::write(&mpath, js).map_err(at(&mpath))?;
     }
     output.emit(&summary, || {
         let mut t = String::new();
@@ -532,7 +492,6 @@ fn run_recorded_cmd(
         );
         t
     })
-    .map_err(|e| e.to_string())
 }
 
 /// The human-readable summary of a simulated run.
@@ -603,7 +562,7 @@ fn summary_text(s: &LidarSummary) -> String {
 pub(crate) fn write_tracks(
     path: &Path,
     tracks: &[(u64, TimeUs, Vec<LidarTrack>)],
-) -> Result<(), String> {
+) -> Result<(), CmdError> {
     let mut s =
         String::from("frame,t_us,track_id,x,y,alpha,vx,vy,support,rms,born,gate_replaced\n");
     for (k, t, rows) in tracks {
@@ -625,7 +584,7 @@ pub(crate) fn write_tracks(
             );
         }
     }
-    std::fs::write(path, s).map_err(|e| format!("{}: {e}", path.display()))
+    Ok(std::fs::write(path, s).map_err(at(path))?)
 }
 
 /// MOTChallenge-style rows with world coordinates: `frame,id,-1,-1,-1,-1,conf,x,y,z`
@@ -633,7 +592,7 @@ pub(crate) fn write_tracks(
 pub(crate) fn write_mot(
     path: &Path,
     tracks: &[(u64, TimeUs, Vec<LidarTrack>)],
-) -> Result<(), String> {
+) -> Result<(), CmdError> {
     let mut s = String::new();
     for (k, _, rows) in tracks {
         for r in rows {
@@ -647,7 +606,7 @@ pub(crate) fn write_mot(
             );
         }
     }
-    std::fs::write(path, s).map_err(|e| format!("{}: {e}", path.display()))
+    Ok(std::fs::write(path, s).map_err(at(path))?)
 }
 
 fn trajectories(tracks: &[(u64, TimeUs, Vec<LidarTrack>)]) -> Vec<Vec<(f64, f64)>> {
@@ -679,7 +638,7 @@ pub fn plot_room(
     background: &[Point2],
     tracks: &[Vec<(f64, f64)>],
     gt: &[Vec<(f64, f64)>],
-) -> Result<(), String> {
+) -> Result<(), CmdError> {
     crate::fonts::register()?;
     let (w, h) = (1100u32, 900u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
@@ -785,7 +744,8 @@ pub fn plot_room(
     }
     let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
     img.save(path)
-        .map_err(|e| format!("{}: {e}", path.display()))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
 }
 
 /// The `quarry demo` rows: `faithful` on `band_mid` (seed `seed`, 600 evaluated frames = 30 s),

@@ -1,17 +1,18 @@
 //! `quarry lidar-node` and `quarry lidar-server`: the networked deployment of the lidar people
 //! tracker (spec 003 §7) over zenoh (feature `zenoh`, on by default).
 
-use crate::output::{CmdResult, Output};
+use crate::config_args::ConfigArgs;
+use crate::output::{CmdError, CmdResult, Output, at};
 use clap::Args;
-use quarry_cloud::csv_scans::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
-use quarry_cloud::net::SyncMode;
+use quarry_data::scans_csv::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
+use quarry_net::proto::SyncMode;
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_net::{
     CsvSource, NodeSummary, SensorSpec, ServerRun, SimSource, Transport, WallNodeOptions,
     WallServerOptions,
 };
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
-use quarry_trackers::lidar_people::LidarPeopleConfig;
+use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -39,12 +40,9 @@ pub struct RoomArgs {
     /// skewed_broadcast, skewed_nosync.
     #[arg(long, default_value = "synced")]
     pub clock_profile: String,
-    /// Preset: literal, faithful (default) or kf-gnn.
-    #[arg(long, default_value = "faithful")]
-    pub preset: String,
-    /// TOML configuration (missing keys take the preset's values), as `quarry lidar --config`.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    /// --preset and --config, as `quarry lidar`.
+    #[command(flatten)]
+    pub cfg: ConfigArgs<Preset>,
 }
 
 /// How to reach the other processes.
@@ -61,45 +59,45 @@ pub struct ZenohArgs {
     pub multicast: bool,
 }
 
-fn clock_mode(s: &str) -> Result<bool, String> {
+fn clock_mode(s: &str) -> Result<bool, CmdError> {
     match s {
         "virtual" => Ok(true),
         "wall" => Ok(false),
-        _ => Err(format!("--clock: expected virtual or wall, got {s:?}")),
+        _ => Err(format!("--clock: expected virtual or wall, got {s:?}").into()),
     }
 }
 
-fn load_config(a: &RoomArgs) -> Result<LidarPeopleConfig, String> {
-    super::lidar::preset_config(&a.preset, a.config.as_deref())
+fn load_config(a: &RoomArgs) -> Result<LidarPeopleConfig, CmdError> {
+    Ok(a.cfg.load()?)
 }
 
 /// The scenario of `quarry lidar --band --people --frames --seed` (same duration formula), with
 /// the network and clock profiles.
-fn scenario(a: &RoomArgs, cfg: &LidarPeopleConfig) -> Result<Scenario, String> {
+fn scenario(a: &RoomArgs, cfg: &LidarPeopleConfig) -> Result<Scenario, CmdError> {
     if a.frames == 0 {
         return Err("--frames must be > 0".into());
     }
-    let band = SpeedBand::parse(&a.band).map_err(|e| e.to_string())?;
+    let band = SpeedBand::parse(&a.band)?;
     let duration = 7.0 + a.frames as f64 * cfg.frame_period_s + 0.3;
     Ok(Scenario::band(band, a.people, a.seed)
         .with_duration(duration)
-        .with_network(NetworkModel::parse(&a.network).map_err(|e| e.to_string())?)
-        .with_clock(ClockProfile::parse(&a.clock_profile).map_err(|e| e.to_string())?))
+        .with_network(NetworkModel::parse(&a.network)?)
+        .with_clock(ClockProfile::parse(&a.clock_profile)?))
 }
 
 #[cfg(feature = "zenoh")]
-fn open_transport(z: &ZenohArgs) -> Result<Box<dyn Transport>, String> {
+fn open_transport(z: &ZenohArgs) -> Result<Box<dyn Transport>, CmdError> {
     let t = quarry_net::ZenohTransport::open(&quarry_net::ZenohOptions {
         listen: z.listen.clone(),
         connect: z.connect.clone(),
         multicast_scouting: z.multicast,
     })
-    .map_err(|e| e.to_string())?;
+    ?;
     Ok(Box::new(t))
 }
 
 #[cfg(not(feature = "zenoh"))]
-fn open_transport(_: &ZenohArgs) -> Result<Box<dyn Transport>, String> {
+fn open_transport(_: &ZenohArgs) -> Result<Box<dyn Transport>, CmdError> {
     Err("this quarry was built without the `zenoh` feature (cargo build -p quarry-cli --features zenoh)".into())
 }
 
@@ -175,7 +173,7 @@ pub struct LidarNodeArgs {
 
 /// Entry point of `quarry lidar-node`.
 pub fn run_node(a: &LidarNodeArgs, out: &Output) -> CmdResult {
-    let s = node_inner(a).map_err(crate::output::CmdError::from)?;
+    let s = node_inner(a)?;
     out.emit(&s, || {
         format!(
             "lidar-node sensor {}: {} scans, {} datagrams, {} dynamic points; lost {}, duplicated {}, \
@@ -194,18 +192,17 @@ pub fn run_node(a: &LidarNodeArgs, out: &Output) -> CmdResult {
     })
 }
 
-fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, String> {
+fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
     let virtual_time = clock_mode(&a.clock)?;
     let cfg = load_config(&a.room)?;
     let wait = Duration::from_secs_f64(a.wait_server.max(0.0));
-    let e = |e: quarry_net::NetError| e.to_string();
     if virtual_time {
         if a.scans.is_some() {
             return Err("--scans needs --clock wall (recordings replay in real time)".into());
         }
         let sc = scenario(&a.room, &cfg)?;
         let t = open_transport(&a.net)?;
-        return quarry_net::run_sim_node(t.as_ref(), sc, a.scanner, &cfg, wait).map_err(e);
+        return Ok(quarry_net::run_sim_node(t.as_ref(), sc, a.scanner, &cfg, wait)?);
     }
     let opts = WallNodeOptions {
         speed: a.speed,
@@ -227,12 +224,12 @@ fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, String> {
                     .as_deref()
                     .ok_or("--meta needs --meta-key (the recording's key in the file)")?;
                 let text =
-                    std::fs::read_to_string(m).map_err(|e| format!("{}: {e}", m.display()))?;
-                parse_scan_meta(&text, key).map_err(|e| e.to_string())?
+                    std::fs::read_to_string(m).map_err(at(m))?;
+                parse_scan_meta(&text, key)?
             }
             None => ScanGeometry::utm30lx(),
         };
-        let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let f = std::fs::File::open(path).map_err(at(path))?;
         let id = SensorId(a.sensor_id);
         let reader = ScanCsvReader::new(
             std::io::BufReader::new(f),
@@ -245,12 +242,12 @@ fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, String> {
         .map_err(|e| format!("{}: {e}", path.display()))?;
         let mut src = CsvSource::new(reader, id, geometry);
         let t = open_transport(&a.net)?;
-        return quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts).map_err(e);
+        return Ok(quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts)?);
     }
     let sc = scenario(&a.room, &cfg)?;
-    let mut src = SimSource::new(sc, a.scanner).map_err(e)?;
+    let mut src = SimSource::new(sc, a.scanner)?;
     let t = open_transport(&a.net)?;
-    quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts).map_err(e)
+    Ok(quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts)?)
 }
 
 /// Arguments of `quarry lidar-server`.
@@ -385,7 +382,7 @@ fn summary(clock: &str, r: &ServerRun) -> ServerSummary {
 
 /// Entry point of `quarry lidar-server`.
 pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
-    let s = server_inner(a).map_err(crate::output::CmdError::from)?;
+    let s = server_inner(a)?;
     out.emit(&s, || {
         let lat: Vec<String> = s
             .min_latency_us
@@ -419,7 +416,7 @@ pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
     })
 }
 
-fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, String> {
+fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
     let virtual_time = clock_mode(&a.clock)?;
     let cfg = load_config(&a.room)?;
     let sc = scenario(&a.room, &cfg)?;
@@ -436,7 +433,7 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, String> {
                         .into(),
                 );
             }
-            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            let text = std::fs::read_to_string(p).map_err(at(p))?;
             let list: Vec<SensorFileEntry> =
                 serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
             list.into_iter()
@@ -457,7 +454,7 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, String> {
     let t = open_transport(&a.net)?;
     let run = if virtual_time {
         let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
-        quarry_net::run_sim_server(t.as_ref(), &sensors, &cfg, t_end, idle)
+        quarry_net::run_sim_server(t.as_ref(), &sensors, &cfg, t_end, idle)?
     } else {
         let opts = WallServerOptions {
             max_duration: a
@@ -467,16 +464,16 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, String> {
             idle_timeout: idle,
             ..WallServerOptions::default()
         };
-        quarry_net::run_wall_server(t.as_ref(), &sensors, &cfg, &opts)
-    }
-    .map_err(|e| e.to_string())?;
+        quarry_net::run_wall_server(t.as_ref(), &sensors, &cfg, &opts)?
+    };
     let s = summary(&a.clock, &run);
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir).map_err(at(dir))?;
         super::lidar::write_tracks(&dir.join("tracks.csv"), &run.tracks)?;
         super::lidar::write_mot(&dir.join("tracks_mot.txt"), &run.tracks)?;
-        let js = serde_json::to_string_pretty(&s).map_err(|e| e.to_string())?;
-        std::fs::write(dir.join("server.json"), js).map_err(|e| e.to_string())?;
+        let js = serde_json::to_string_pretty(&s)?;
+        let path = dir.join("server.json");
+        std::fs::write(&path, js).map_err(at(&path))?;
     }
     Ok(s)
 }

@@ -14,10 +14,9 @@
 //! ([`free_space_violations`]). A scanner that cannot be calibrated is a
 //! [`TrackerError::Calibration`] naming it, never a silent fall-back to its rough pose.
 //!
-//! In the simulator the rough ("hand-measured") poses are the true poses moved by a seeded draw
-//! of at most `calib_max_shift_m` and `calib_max_rot_deg`
-//! ([`Scenario::hand_measured_poses`]), or the poses of `calib_rough_poses`; the reference
-//! scanner's pose is its true (configured) pose unless `calib_rough_poses` says otherwise.
+//! The rough ("hand-measured") poses come from the caller: the poses of `calib_rough_poses`, or,
+//! in the simulator, quarry-repro's seeded draw around the true poses. The reference scanner's
+//! rough pose is taken as exact.
 
 use super::config::{Calibration, LidarPeopleConfig};
 use super::{ClientPipeline, background_of};
@@ -27,12 +26,26 @@ use quarry_cloud::calib::{
     CalibConfig, CalibResult, FreeSpaceCheck, ScannerBackground, background_points, calibrate,
     free_space_violations,
 };
-use quarry_core::{BackgroundModel, Pose2, SensorId, TimeUs, wrap_angle};
-use quarry_sim::lidar_room::{RoomEvent, Runner, ScannerSim, Scenario};
+use quarry_core::{BackgroundModel, Pose2, ScanGeometry, SensorId, TimeUs, wrap_angle};
 use serde::Serialize;
 use std::fmt::Write as _;
 
-/// One scanner's calibration, with its errors against the simulator's true pose.
+/// A scanner as the calibration sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScannerInfo {
+    /// Sensor id.
+    pub id: SensorId,
+    /// Name for messages (`A`, `B`, ...).
+    pub name: String,
+    /// Beam geometry.
+    pub geometry: ScanGeometry,
+    /// The pose the calibrated pose is compared with in the report: the true pose in a
+    /// simulation, a surveyed pose where one exists (pass the rough pose otherwise: the reported
+    /// errors are then the correction the calibration applied).
+    pub pose: Pose2,
+}
+
+/// One scanner's calibration, with its errors against [`ScannerInfo::pose`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ScannerCalibration {
     /// Sensor id.
@@ -45,7 +58,7 @@ pub struct ScannerCalibration {
     pub rough: Pose2,
     /// The calibrated pose.
     pub pose: Pose2,
-    /// The true pose (simulator).
+    /// The pose it is compared with ([`ScannerInfo::pose`]: the truth in the simulator).
     pub truth: Pose2,
     /// Number of background points `|B_s|`.
     pub background_points: usize,
@@ -71,7 +84,7 @@ pub struct ScannerCalibration {
     pub rough_rot_error_deg: f64,
 }
 
-/// The outcome of `calibration = icp` on a simulated room.
+/// The outcome of `calibration = icp`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CalibrationReport {
     /// Server time at which the poses were calibrated (end of the last client's warm-up), µs.
@@ -85,7 +98,7 @@ pub struct CalibrationReport {
     /// Largest orientation error over the scanners, degrees.
     pub max_rot_error_deg: f64,
     /// Fused frames the server closed before the calibration and did not track (their poses
-    /// were unknown); 0 outside [`super::run_room`].
+    /// were unknown); 0 outside a run (quarry-repro's `run_room`).
     pub frames_discarded: usize,
 }
 
@@ -103,7 +116,7 @@ impl CalibrationReport {
 /// much closer than the scanner's background range (5× the 3 cm far-range noise).
 pub const FREE_SPACE_MARGIN_M: f64 = 0.15;
 
-fn scanner_label(s: &ScannerSim) -> String {
+fn scanner_label(s: &ScannerInfo) -> String {
     format!("{} (sensor {})", s.name, s.id.0)
 }
 
@@ -115,66 +128,47 @@ pub fn pose_error(p: &Pose2, truth: &Pose2) -> (f64, f64) {
     )
 }
 
-/// The rough initial poses of `sc`'s scanners under `cfg` (scenario order): the poses of
-/// `calib_rough_poses` if given (one per scanner), otherwise the seeded draw of
-/// [`Scenario::hand_measured_poses`] with the reference scanner at its true pose.
-pub fn rough_poses(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Vec<Pose2>, TrackerError> {
-    let r = reference_index(&sc.scanners, cfg)?;
-    if !cfg.calib_rough_poses.is_empty() {
-        if cfg.calib_rough_poses.len() != sc.scanners.len() {
-            return Err(TrackerError::Config(format!(
-                "calib_rough_poses has {} poses, the scenario has {} scanners",
-                cfg.calib_rough_poses.len(),
-                sc.scanners.len()
-            )));
-        }
-        return Ok(cfg
-            .calib_rough_poses
-            .iter()
-            .map(|p| Pose2::new(p[0], p[1], p[2].to_radians()))
-            .collect());
-    }
-    let mut rough = sc
-        .hand_measured_poses(cfg.calib_max_shift_m, cfg.calib_max_rot_deg.to_radians())
-        .map_err(|e| TrackerError::Config(e.to_string()))?;
-    rough[r] = sc.scanners[r].pose;
-    Ok(rough)
-}
-
-fn reference_index(
-    scanners: &[ScannerSim],
+/// The index in `scanners` of the reference scanner `cfg.calib_reference`.
+pub fn reference_index(
+    scanners: &[ScannerInfo],
     cfg: &LidarPeopleConfig,
 ) -> Result<usize, TrackerError> {
     scanners
         .iter()
         .position(|s| s.id.0 == cfg.calib_reference)
         .ok_or_else(|| {
-            TrackerError::Config(format!(
-                "calib_reference = {} is not a scanner of the scenario (ids {:?})",
-                cfg.calib_reference,
-                scanners.iter().map(|s| s.id.0).collect::<Vec<_>>()
-            ))
+            TrackerError::config(
+                "lidar_people",
+                format!(
+                    "calib_reference = {} is not one of the scanners (ids {:?})",
+                    cfg.calib_reference,
+                    scanners.iter().map(|s| s.id.0).collect::<Vec<_>>()
+                ),
+            )
         })
 }
 
 /// Calibrates `scanners` from their long-term backgrounds `b_n` (`backgrounds[i]` is scanner
-/// `i`'s, one entry per beam, metres, `None` = unknown) starting from `rough` (scenario order;
-/// the reference's entry is taken as exact), and reports the errors against the scanners' true
-/// poses. `t` is stamped on the report.
+/// `i`'s, one entry per beam, metres, `None` = unknown) starting from `rough` (same order; the
+/// reference's entry is taken as exact), and reports the errors against [`ScannerInfo::pose`].
+/// `t` is stamped on the report.
 pub fn calibrate_backgrounds(
-    scanners: &[ScannerSim],
+    scanners: &[ScannerInfo],
     rough: &[Pose2],
     backgrounds: &[&[Option<f64>]],
     cfg: &LidarPeopleConfig,
     t: TimeUs,
 ) -> Result<CalibrationReport, TrackerError> {
     if scanners.len() != rough.len() || scanners.len() != backgrounds.len() {
-        return Err(TrackerError::Config(format!(
-            "calibration needs one rough pose and one background per scanner: {} scanners, {} poses, {} backgrounds",
-            scanners.len(),
-            rough.len(),
-            backgrounds.len()
-        )));
+        return Err(TrackerError::config(
+            "lidar_people",
+            format!(
+                "calibration needs one rough pose and one background per scanner: {} scanners, {} poses, {} backgrounds",
+                scanners.len(),
+                rough.len(),
+                backgrounds.len()
+            ),
+        ));
     }
     let r = reference_index(scanners, cfg)?;
     let cc = CalibConfig {
@@ -273,24 +267,34 @@ pub fn calibrate_backgrounds(
 /// The server side of `calibration = icp` during a run: waits for every client's `b_n`, then
 /// calibrates once.
 #[derive(Debug, Clone)]
-pub(crate) struct PendingCalibration {
-    scanners: Vec<ScannerSim>,
-    pub(crate) rough: Vec<Pose2>,
+pub struct PendingCalibration {
+    scanners: Vec<ScannerInfo>,
+    rough: Vec<Pose2>,
     scans: Vec<u64>,
     limit: u64,
 }
 
 impl PendingCalibration {
-    /// For the scanners of `sc` under `cfg` (which must say `calibration = icp`).
-    pub(crate) fn new(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Self, TrackerError> {
+    /// For `scanners` with their rough poses `rough` (same order) under `cfg` (which must say
+    /// `calibration = icp`).
+    pub fn new(
+        scanners: Vec<ScannerInfo>,
+        rough: Vec<Pose2>,
+        cfg: &LidarPeopleConfig,
+    ) -> Result<Self, TrackerError> {
         if cfg.calibration != Calibration::Icp {
-            return Err(TrackerError::Config(
-                "calibration from the backgrounds needs calibration = icp".into(),
+            return Err(TrackerError::config(
+                "lidar_people",
+                "calibration from the backgrounds needs calibration = icp",
             ));
         }
-        let rough = rough_poses(sc, cfg)?;
-        let period = sc
-            .scanners
+        if rough.len() != scanners.len() {
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!("{} rough poses for {} scanners", rough.len(), scanners.len()),
+            ));
+        }
+        let period = scanners
             .iter()
             .map(|s| s.geometry.scan_period)
             .fold(f64::INFINITY, f64::min)
@@ -298,17 +302,22 @@ impl PendingCalibration {
         // a client whose model has not published b_n after twice the warm-up never will
         let limit = (2.0 * cfg.t_warm_s / period).ceil().max(1.0) as u64;
         Ok(Self {
-            scanners: sc.scanners.clone(),
+            scans: vec![0; scanners.len()],
+            scanners,
             rough,
-            scans: vec![0; sc.scanners.len()],
             limit,
         })
+    }
+
+    /// The rough poses the calibration starts from (the fusion uses them until it is done).
+    pub fn rough(&self) -> &[Pose2] {
+        &self.rough
     }
 
     /// Called after client `i` has processed a scan at server time `t`: the report once every
     /// client has published its background, `None` before; an error if client `i` has not
     /// published one after twice the warm-up, or if the calibration fails.
-    pub(crate) fn on_scan<B: BackgroundModel>(
+    pub fn on_scan<B: BackgroundModel>(
         &mut self,
         clients: &[ClientPipeline<B>],
         i: usize,
@@ -339,50 +348,6 @@ impl PendingCalibration {
     }
 }
 
-/// Runs the clients of `sc` (quarry-cloud's chi-square background of `cfg`) until every one has
-/// learned its background, then calibrates as `calibration = icp` does in [`super::run_room`]
-/// (`cfg.calibration` is taken as `icp`). This is the spec's `calib` scenario run on its own:
-/// `calibrate_scenario(Scenario::calib(seed), &cfg)` returns the recovered poses and their
-/// errors against the truth.
-pub fn calibrate_scenario(
-    sc: Scenario,
-    cfg: &LidarPeopleConfig,
-) -> Result<CalibrationReport, TrackerError> {
-    let cfg = LidarPeopleConfig {
-        calibration: Calibration::Icp,
-        ..cfg.clone()
-    };
-    cfg.validate()?;
-    if !cfg.revealed_background {
-        return Err(TrackerError::Config(
-            "calibration = icp needs the long-term background b_n (revealed_background = true)"
-                .into(),
-        ));
-    }
-    let mut pending = PendingCalibration::new(&sc, &cfg)?;
-    let mut clients = sc
-        .scanners
-        .iter()
-        .map(|s| Ok(ClientPipeline::new(s.id, background_of(&cfg, &s.geometry)?)))
-        .collect::<Result<Vec<_>, TrackerError>>()?;
-    let mut runner = Runner::new(sc).map_err(|e| TrackerError::Config(e.to_string()))?;
-    while let Some(ev) = runner
-        .next_event()
-        .map_err(|e| TrackerError::Config(e.to_string()))?
-    {
-        if let RoomEvent::Scan(cs) = ev {
-            clients[cs.scanner].on_scan(&cs.scan, cs.clock_synced)?;
-            if let Some(rep) = pending.on_scan(&clients, cs.scanner, cs.t_true, &cfg)? {
-                return Ok(rep);
-            }
-        }
-    }
-    Err(TrackerError::Config(
-        "the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)"
-            .into(),
-    ))
-}
-
 /// Extra ICP starts `(dx m, dy m, dθ degrees)` around a scanner's rough pose, tried in this
 /// order when its registration is refused (a choice beyond §2.3; every result still passes the
 /// same acceptance and free-space checks).
@@ -405,7 +370,7 @@ type Attempt = (Vec<CalibResult>, Vec<CalibResult>, Vec<FreeSpaceCheck>);
 /// One calibration of every scanner from the poses in `sets`, with the acceptance and
 /// free-space checks; on failure, the index of the scanner to blame (if known) and the error.
 fn attempt(
-    scanners: &[ScannerSim],
+    scanners: &[ScannerInfo],
     sets: &[ScannerBackground],
     backgrounds: &[&[Option<f64>]],
     r: usize,

@@ -397,6 +397,12 @@ impl crate::TrackerConfig for LidarPeopleConfig {
                 "calib_rough_poses[{i}] must be finite, got {p:?}"
             )));
         }
+        if self.calibration == Calibration::Icp && !self.revealed_background {
+            return Err(TrackerError::config(
+                "lidar_people",
+                "calibration = icp needs the long-term background b_n (revealed_background = true; the literal preset keeps none)",
+            ));
+        }
         if self.kf_m == 0 || self.kf_m > self.kf_n || self.kf_n > 64 {
             return Err(TrackerError::config("lidar_people", "kf-gnn needs 1 <= kf_m <= kf_n <= 64",
             ));

@@ -1,6 +1,6 @@
-//! The tracker on recorded scans of one scanner (`quarry lidar --scans FILE.csv`), and the
-//! position error against labelled leg centroids (the leg-tracker recordings of
-//! `shared/data/leg-tracker`).
+//! The tracker on recorded scans of one scanner (`quarry lidar --scans FILE.csv`; the scans
+//! come from quarry-data's `scans_csv` reader or from the user's own driver). The scoring
+//! against labelled leg centroids is quarry-repro's.
 //!
 //! Each recorded scan goes through the client's background model and becomes one fused frame
 //! of its own (one scanner: nothing to fuse; the frame time is the scan stamp, so Δt is the
@@ -185,147 +185,6 @@ pub fn run_recorded(
     Ok(run)
 }
 
-/// A labelled person position: the mean of the leg centroids of one scan.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LabelledPerson {
-    /// Scan stamp.
-    pub t: TimeUs,
-    /// Position (laser frame), metres.
-    pub pos: Point2,
-    /// Number of leg centroids averaged.
-    pub legs: usize,
-}
-
-/// Parses a `positive_k_legs.csv` (header `stamp_s,leg_index,x_m,y_m,frame_id`, one row per
-/// leg) into one [`LabelledPerson`] per stamp (mean of its legs), in stamp order.
-///
-/// Errors name the line: a missing or different header, a wrong column count, an unparseable
-/// or non-finite number.
-pub fn parse_legs_csv(text: &str) -> Result<Vec<LabelledPerson>, TrackerError> {
-    let bad = |line: usize, why: &str| TrackerError::Config(format!("legs csv line {line}: {why}"));
-    let mut lines = text.lines().enumerate();
-    let header = lines
-        .next()
-        .map(|(_, h)| h.trim().to_string())
-        .unwrap_or_default();
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    if cols.len() < 4 || cols[..4] != ["stamp_s", "leg_index", "x_m", "y_m"] {
-        return Err(bad(1, "header must start with stamp_s,leg_index,x_m,y_m"));
-    }
-    let mut acc: std::collections::BTreeMap<i64, (f64, f64, usize)> =
-        std::collections::BTreeMap::new();
-    for (i, line) in lines {
-        let line_no = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        if f.len() != cols.len() {
-            return Err(bad(
-                line_no,
-                &format!("{} columns, the header has {}", f.len(), cols.len()),
-            ));
-        }
-        let num = |j: usize| -> Result<f64, TrackerError> {
-            let v: f64 = f[j]
-                .parse()
-                .map_err(|_| bad(line_no, &format!("column {} is not a number", cols[j])))?;
-            if v.is_finite() {
-                Ok(v)
-            } else {
-                Err(bad(line_no, &format!("column {} is not finite", cols[j])))
-            }
-        };
-        let stamp = num(0)?;
-        let (x, y) = (num(2)?, num(3)?);
-        let e = acc
-            .entry((stamp * 1e6).round() as i64)
-            .or_insert((0.0, 0.0, 0));
-        e.0 += x;
-        e.1 += y;
-        e.2 += 1;
-    }
-    Ok(acc
-        .into_iter()
-        .map(|(t, (x, y, n))| LabelledPerson {
-            t: TimeUs(t),
-            pos: Point2::new(x / n as f64, y / n as f64),
-            legs: n,
-        })
-        .collect())
-}
-
-/// Position error of a recorded run against labelled people.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
-pub struct LabelledError {
-    /// Labelled scans found in the run.
-    pub labelled: usize,
-    /// Labelled scans with a track within the match radius.
-    pub matched: usize,
-    /// RMSE of the matched scans, metres.
-    pub rmse_m: f64,
-    /// Mean error of the matched scans, metres.
-    pub mean_m: f64,
-    /// Median error of the matched scans, metres.
-    pub median_m: f64,
-    /// Matched scans whose label averaged two (or more) legs.
-    pub matched_two_legs: usize,
-    /// RMSE over those, metres.
-    pub rmse_two_legs_m: f64,
-}
-
-/// Scores `run` against `labels`: for each labelled stamp present in the run, the nearest track
-/// within `match_radius` (metres, finite and > 0) is the match. Labels whose stamp is not in
-/// the run are ignored.
-pub fn score_labelled(
-    run: &RecordedRun,
-    labels: &[LabelledPerson],
-    match_radius: f64,
-) -> Result<LabelledError, TrackerError> {
-    if !(match_radius.is_finite() && match_radius > 0.0) {
-        return Err(CoreError::invalid("match_radius", "must be finite and > 0").into());
-    }
-    let mut out = LabelledError::default();
-    let mut errs = Vec::new();
-    let mut errs2 = Vec::new();
-    for l in labels {
-        let Ok(i) = run.frames.binary_search_by_key(&l.t, |f| f.t) else {
-            continue;
-        };
-        out.labelled += 1;
-        let best = run.frames[i]
-            .tracks
-            .iter()
-            .map(|t| (t.x - l.pos.x).hypot(t.y - l.pos.y))
-            .fold(f64::INFINITY, f64::min);
-        if best <= match_radius {
-            errs.push(best);
-            if l.legs >= 2 {
-                errs2.push(best);
-            }
-        }
-    }
-    let rms = |v: &[f64]| {
-        if v.is_empty() {
-            f64::NAN
-        } else {
-            (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
-        }
-    };
-    out.matched = errs.len();
-    out.matched_two_legs = errs2.len();
-    out.rmse_m = rms(&errs);
-    out.rmse_two_legs_m = rms(&errs2);
-    out.mean_m = if errs.is_empty() {
-        f64::NAN
-    } else {
-        errs.iter().sum::<f64>() / errs.len() as f64
-    };
-    errs.sort_by(f64::total_cmp);
-    out.median_m = errs.get(errs.len() / 2).copied().unwrap_or(f64::NAN);
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -340,21 +199,6 @@ mod tests {
             range_max: 10.0,
             scan_period: 0.1,
         }
-    }
-
-    #[test]
-    fn legs_csv_parses_and_rejects() {
-        let l = parse_legs_csv(
-            "stamp_s,leg_index,x_m,y_m,frame_id\n1.0,0,1.0,0.0,laser\n1.0,1,1.0,0.2,laser\n2.0,0,3,3,laser\n",
-        )
-        .unwrap();
-        assert_eq!(l.len(), 2);
-        assert_eq!(l[0].legs, 2);
-        assert!((l[0].pos.y - 0.1).abs() < 1e-12);
-        assert!(parse_legs_csv("x,y\n").is_err());
-        assert!(parse_legs_csv("stamp_s,leg_index,x_m,y_m,frame_id\n1,0,nan,0,l\n").is_err());
-        assert!(parse_legs_csv("stamp_s,leg_index,x_m,y_m,frame_id\n1,0,1\n").is_err());
-        assert!(parse_legs_csv("").is_err());
     }
 
     #[test]

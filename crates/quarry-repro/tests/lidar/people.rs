@@ -1,13 +1,11 @@
 //! Scenario tests of the spec 003 tracker on the room simulator (short versions; the full
 //! Table 2 protocol runs through `quarry lidar` and is reported in docs/lidar-people.md).
-#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry_core::TimeUs;
 use quarry_sim::lidar_room::{Scenario, SpeedBand};
-use quarry_trackers::lidar_people::{
-    FusionTime, LidarPeopleConfig, Paper003Metrics, Preset, evaluate_paper003, gate_of,
-    run_room_default,
-};
+use quarry_repro::lidar::{Paper003Metrics, evaluate_paper003, run_room_default};
+use quarry_trackers::TrackerConfig;
+use quarry_trackers::lidar_people::{FusionTime, LidarPeopleConfig, Preset, gate_of};
 
 fn run(sc: Scenario, preset: Preset, frames: usize) -> Paper003Metrics {
     run_cfg(sc, &LidarPeopleConfig::preset(preset), frames)
@@ -282,7 +280,7 @@ fn run_window(
     preset: Preset,
     frames: usize,
 ) -> (
-    Vec<quarry_trackers::lidar_people::EvalFrame>,
+    Vec<quarry_repro::lidar::EvalFrame>,
     Paper003Metrics,
 ) {
     let cfg = LidarPeopleConfig::preset(preset);
@@ -315,12 +313,12 @@ fn print(name: &str, preset: Preset, m: &Paper003Metrics) {
 /// with the GT person it is matched to (within d_match) most often, if any.
 #[allow(clippy::type_complexity)]
 fn lifetimes(
-    w: &[quarry_trackers::lidar_people::EvalFrame],
+    w: &[quarry_repro::lidar::EvalFrame],
 ) -> (
     std::collections::BTreeMap<u32, (f64, f64)>,
     std::collections::BTreeMap<u32, (f64, f64, Option<u32>)>,
 ) {
-    use quarry_trackers::lidar_people::match_within;
+    use quarry_repro::lidar::match_within;
     let mut gt: std::collections::BTreeMap<u32, (f64, f64)> = Default::default();
     let mut tr: std::collections::BTreeMap<u32, (f64, f64)> = Default::default();
     let mut votes: std::collections::BTreeMap<u32, std::collections::BTreeMap<u32, usize>> =

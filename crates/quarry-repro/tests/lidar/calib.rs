@@ -1,7 +1,6 @@
 //! `calibration = icp` (spec 003 §2.3) on the simulated room: property 7 of §8 on the `calib`
 //! scenario with noisy scans, tracking with calibrated poses against the given poses, and the
 //! clear errors (rough pose far off, no background, bad configuration).
-#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use proptest::prelude::*;
 use quarry_cloud::CloudError;
@@ -9,11 +8,15 @@ use quarry_core::{BackgroundModel, Pose2, TimeUs};
 use quarry_sim::lidar_room::{
     CALIB_MAX_ROT_DEG, CALIB_MAX_SHIFT_M, RoomEvent, Runner, Scenario, SpeedBand,
 };
-use quarry_trackers::TrackerError;
-use quarry_trackers::lidar_people::{
-    Calibration, CalibrationReport, LidarPeopleConfig, Paper003Metrics, Preset, background_of,
-    calibrate_backgrounds, calibrate_scenario, evaluate_paper003, gate_of, run_room_default,
+use quarry_repro::ReproError;
+use quarry_repro::lidar::{
+    Paper003Metrics, calibrate_scenario, evaluate_paper003, run_room_default, scanner_infos,
 };
+use quarry_trackers::lidar_people::{
+    Calibration, CalibrationReport, LidarPeopleConfig, Preset, background_of,
+    calibrate_backgrounds, gate_of,
+};
+use quarry_trackers::{TrackerConfig, TrackerError};
 use std::sync::OnceLock;
 
 fn icp() -> LidarPeopleConfig {
@@ -158,7 +161,7 @@ fn a_rough_pose_far_off_is_a_clear_error_naming_the_scanner() {
     assert!(
         matches!(
             &e,
-            TrackerError::Calibration { scanner, cloud: Some(CloudError::CalibrationInsufficient { .. }), .. }
+            ReproError::Tracker(TrackerError::Calibration { scanner, cloud: Some(CloudError::CalibrationInsufficient { .. }), .. })
                 if scanner.starts_with("C ")
         ),
         "{e:?}"
@@ -169,7 +172,10 @@ fn a_rough_pose_far_off_is_a_clear_error_naming_the_scanner() {
     );
     // the same through the tracker pipeline: the run stops, it does not fall back
     let e = run_room_default(sc.with_duration(7.0), &cfg, &mut |_| {}).unwrap_err();
-    assert!(matches!(e, TrackerError::Calibration { .. }), "{e:?}");
+    assert!(
+        matches!(e, ReproError::Tracker(TrackerError::Calibration { .. })),
+        "{e:?}"
+    );
 }
 
 #[test]
@@ -246,7 +252,7 @@ proptest! {
             ));
         }
         let refs: Vec<&[Option<f64>]> = bgs.iter().map(Vec::as_slice).collect();
-        let rep = calibrate_backgrounds(&sc.scanners, &rough, &refs, &icp(), TimeUs(0)).unwrap();
+        let rep = calibrate_backgrounds(&scanner_infos(&sc), &rough, &refs, &icp(), TimeUs(0)).unwrap();
         prop_assert!(rep.max_pos_error_m <= 0.02, "{:?}", rep);
         prop_assert!(rep.max_rot_error_deg <= 0.3, "{:?}", rep);
         // the reference stays where it was configured
@@ -340,7 +346,7 @@ fn convergence_basin_sweep() {
                             t.y + shift * dir.sin(),
                             t.theta + sign * rot.to_radians(),
                         );
-                        match calibrate_backgrounds(&sc.scanners, &rough, &refs, &icp(), TimeUs(0))
+                        match calibrate_backgrounds(&scanner_infos(&sc), &rough, &refs, &icp(), TimeUs(0))
                         {
                             Ok(r) if r.max_pos_error_m <= 0.02 && r.max_rot_error_deg <= 0.3 => {
                                 ok += 1;

@@ -22,8 +22,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use quarry_core::{CoreError, Point2, Pose2, ScanGeometry, SensorId, TimeUs};
 
 use super::wire::{FLAG_CLOCK_SYNCED, Kind, Message, Payload};
-use crate::error::Result;
-use crate::scan::BeamTable;
+type Result<T, E = CoreError> = std::result::Result<T, E>;
+use quarry_cloud::scan::BeamTable;
 
 /// One scanner known to the server.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -226,11 +226,10 @@ impl FrameAssembler {
             return Err(CoreError::invalid(
                 "frame config",
                 "periods must be positive, tolerances >= 0",
-            )
-            .into());
+            ));
         }
         if sensors.is_empty() || sensors.len() > 64 {
-            return Err(CoreError::invalid("sensors", "need 1 to 64 sensors").into());
+            return Err(CoreError::invalid("sensors", "need 1 to 64 sensors"));
         }
         let mut ids = BTreeSet::new();
         let mut states = Vec::new();
@@ -239,14 +238,12 @@ impl FrameAssembler {
                 return Err(CoreError::invalid(
                     "sensors",
                     format!("duplicate sensor id {}", s.id.0),
-                )
-                .into());
+                ));
             }
             if !s.pose.is_finite() {
                 return Err(CoreError::NonFinite {
                     what: "sensor pose",
-                }
-                .into());
+                });
             }
             states.push(SensorState {
                 cfg: *s,
@@ -313,8 +310,7 @@ impl FrameAssembler {
         if !pose.is_finite() {
             return Err(CoreError::NonFinite {
                 what: "sensor pose",
-            }
-            .into());
+            });
         }
         let s = self
             .sensors
@@ -594,7 +590,7 @@ impl FrameAssembler {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::net::wire::{Header, encode_scan};
+    use crate::proto::wire::{Header, encode_scan};
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng, seq::SliceRandom};
 

@@ -3,13 +3,12 @@
 //! Measured: 166/197 labelled scans matched, RMSE 0.123 m. The thresholds are these values with
 //! a margin: they fail if the
 //! background model, the detector or the scoring regress.
-#![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use quarry_cloud::csv_scans::{ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_core::Pose2;
-use quarry_trackers::lidar_people::{
-    LidarPeopleConfig, parse_legs_csv, run_recorded, score_labelled,
-};
+use quarry_data::leg_labels::parse_legs_csv;
+use quarry_data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
+use quarry_repro::lidar::score_labelled;
+use quarry_trackers::lidar_people::{LidarPeopleConfig, run_recorded};
 use std::path::PathBuf;
 
 fn data() -> Option<PathBuf> {

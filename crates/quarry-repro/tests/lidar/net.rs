@@ -1,5 +1,5 @@
-//! Nodes and server as threads over the in-process transport.
-#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! The networked tracker (quarry-net): nodes and server as threads over the in-process
+//! transport, against the in-process run of the same scenario.
 
 use quarry_core::TimeUs;
 use quarry_net::{
@@ -7,7 +7,8 @@ use quarry_net::{
     WallServerOptions, keys, run_sim_node, run_sim_server, run_wall_node, run_wall_server,
 };
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
-use quarry_trackers::lidar_people::{LidarPeopleConfig, run_room_default};
+use quarry_repro::lidar::run_room_default;
+use quarry_trackers::lidar_people::LidarPeopleConfig;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 

@@ -12,7 +12,7 @@ use std::collections::VecDeque;
 
 use quarry_core::{CoreError, TimeUs};
 
-use crate::error::Result;
+type Result<T, E = CoreError> = std::result::Result<T, E>;
 
 /// Which synchronisation the client runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -94,12 +94,11 @@ impl ClockSync {
             return Err(CoreError::invalid(
                 "sync reply",
                 "timestamps out of order (t4 < t1 or t3 < t2)",
-            )
-            .into());
+            ));
         }
         let s = ntp_sample(t1, t2, t3, t4);
         if s.delay_us < 0.0 {
-            return Err(CoreError::invalid("sync reply", "negative round-trip delay").into());
+            return Err(CoreError::invalid("sync reply", "negative round-trip delay"));
         }
         self.samples.push_back(s);
         while self.samples.len() > self.window.max(1) {

@@ -1,7 +1,7 @@
 //! The measures of spec 003 §4: the paper's per-frame success rate, the localisation error, and
 //! the standard MOT metrics (through quarry-eval) over the same frames.
 
-use crate::TrackerError;
+use crate::ReproError;
 use nalgebra::Vector2;
 use quarry_assoc::{PositionVelocityGate, PvState};
 use quarry_core::{CoreError, TimeUs};
@@ -179,7 +179,7 @@ pub fn evaluate_paper003(
     gate: &PositionVelocityGate,
     min_num_point: usize,
     d_match: f64,
-) -> Result<Paper003Metrics, TrackerError> {
+) -> Result<Paper003Metrics, ReproError> {
     if !(d_match.is_finite() && d_match > 0.0) {
         return Err(CoreError::invalid("d_match", "must be finite and > 0").into());
     }
@@ -221,7 +221,7 @@ pub fn evaluate_paper003(
         })
         .collect();
     let sim = Euclidean::new(d_match)?;
-    let s = evaluate(&mot_frames, &sim).map_err(eval_err)?;
+    let s = evaluate(&mot_frames, &sim)?;
     m.mota = s.clear.mota().unwrap_or(0.0);
     m.motp = s.clear.motp().unwrap_or(0.0);
     m.idf1 = s.identity.idf1().unwrap_or(0.0);
@@ -236,17 +236,12 @@ pub fn evaluate_paper003(
     Ok(m)
 }
 
-#[allow(clippy::needless_pass_by_value)] // used as map_err(eval_err)
-fn eval_err(e: quarry_eval::EvalError) -> TrackerError {
-    CoreError::numerical("evaluation", e.to_string()).into()
-}
-
 /// Hungarian matching on Euclidean cost allowing only pairs within `d_max`: `(gt, track, dist)`.
 pub fn match_within(
     gt: &[[f64; 2]],
     tr: &[[f64; 2]],
     d_max: f64,
-) -> Result<Vec<(usize, usize, f64)>, TrackerError> {
+) -> Result<Vec<(usize, usize, f64)>, ReproError> {
     if gt.is_empty() || tr.is_empty() {
         return Ok(Vec::new());
     }
@@ -257,7 +252,7 @@ pub fn match_within(
             cost.push(d(g, t));
         }
     }
-    let pairs = hungarian_match(&cost, gt.len(), tr.len(), d_max).map_err(eval_err)?;
+    let pairs = hungarian_match(&cost, gt.len(), tr.len(), d_max)?;
     Ok(pairs
         .into_iter()
         .map(|(i, j)| (i, j, d(&gt[i], &tr[j])))
