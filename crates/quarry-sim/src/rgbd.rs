@@ -28,10 +28,12 @@ use quarry_core::rng::stream;
 use quarry_core::{BBox, CameraMount, CoreError, PinholeIntrinsics, Plane, Pose2};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// The six scenarios of spec §5.3.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub enum ScenarioId {
     /// S1: static robot, a panel crosses in front of the target, the target turns.
     S1StaticOcclusion,
@@ -102,7 +104,8 @@ impl ScenarioId {
 }
 
 /// Ground truth of one frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct FrameTruth {
     /// Frame index (0-based).
     pub frame: usize,

@@ -27,13 +27,15 @@ use quarry_core::{CoreError, LandmarkId, Pose2, wrap_angle};
 use rand::Rng;
 use rand::seq::SliceRandom;
 use rand_distr::{Distribution, Normal, Poisson, StandardNormal};
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
 
 /// Configuration of the simulated SLAMOT scenario. `Default` is S0 (spec §3.2).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+#[cfg_attr(feature = "serde", serde(default))]
 pub struct SlamotScenarioConfig {
     /// Control period Δt_u \[s\] (Bailey's FastSLAM simulator default 0.025 s).
     pub dt_control: f64,
@@ -210,7 +212,8 @@ impl SlamotScenarioConfig {
 }
 
 /// Ground truth of one control step.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct SlamotTruth {
     /// True robot pose.
     pub robot: Pose2,
@@ -223,7 +226,8 @@ pub struct SlamotTruth {
 }
 
 /// One control step of the scenario: what the robot's sensors report, plus the truth.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct SlamotFrame {
     /// Control step index k (1-based: frame k is the state after k control steps).
     pub k: u64,

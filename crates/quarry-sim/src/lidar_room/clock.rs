@@ -5,10 +5,12 @@ use crate::SimError;
 use quarry_core::CoreError;
 use quarry_core::rng::SeededRng;
 use rand::Rng;
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// Clock profile of the clients (spec §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub enum ClockProfile {
     /// Perfect clocks (o = ρ = 0), still with stamping jitter.
     Synced,

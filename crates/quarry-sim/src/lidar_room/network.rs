@@ -6,10 +6,12 @@ use quarry_core::CoreError;
 use quarry_core::rng::SeededRng;
 use rand::Rng;
 use rand_distr::{Distribution, Exp};
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// Network profile (spec §5).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct NetworkModel {
     /// Base delay, seconds.
     pub base_s: f64,

@@ -5,11 +5,13 @@
 use super::raycast::{ray_circle, ray_ellipse};
 use crate::SimError;
 use quarry_core::{CoreError, Point2};
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// The three walking-speed bands of the paper's Table 2.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub enum SpeedBand {
     /// 0.10–0.25 m/s.
     Slow,
@@ -50,7 +52,8 @@ impl SpeedBand {
 }
 
 /// How a person moves.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub enum Motion {
     /// Random waypoints in the walkable region, speed per leg from the band (default).
     Waypoint,
@@ -80,7 +83,8 @@ pub enum Motion {
 /// and a corridor, but keep the 0.6 m person–person distance (the walker waits while blocked).
 /// A visitor spawns, and starts its way out, only while no other person's centre is in `lane`,
 /// so two people never meet head-on in the doorway.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct Visit {
     /// The way in from the spawn point; the last point is in the walkable region, where the
     /// random waypoints start.
@@ -133,7 +137,8 @@ fn box_free(b: [f64; 4], others: &[Point2]) -> bool {
 }
 
 /// One simulated person.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct PersonSpec {
     /// Ground-truth id.
     pub id: u32,
@@ -148,7 +153,8 @@ pub struct PersonSpec {
 }
 
 /// The state of one person at one instant (ground truth).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct PersonState {
     /// Ground-truth id.
     pub id: u32,

@@ -5,10 +5,12 @@ use super::raycast::{ray_circle, ray_segment};
 use quarry_core::Point2;
 use quarry_core::rng::SeededRng;
 use rand::Rng;
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// A static obstacle reaching the scan plane.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub enum Obstacle {
     /// An axis-aligned rectangle `[x0, x1] × [y0, y1]`.
     Rect {
@@ -59,7 +61,8 @@ impl Obstacle {
 }
 
 /// A wall segment.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct Wall {
     /// One end.
     pub a: [f64; 2],
@@ -68,7 +71,8 @@ pub struct Wall {
 }
 
 /// The room: walls, obstacles and the walkable region.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct Room {
     /// Name (`room10x8`).
     pub name: String,

@@ -11,6 +11,7 @@ use quarry_core::rng::{SeededRng, stream};
 use quarry_core::{CoreError, Point2, PolarScan, TimeUs};
 use rand::Rng;
 use rand_distr::Normal;
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// A scan as captured and stamped by a client, with its delivery times at the server.
@@ -29,7 +30,8 @@ pub struct CapturedScan {
 }
 
 /// The ground truth of one person at a frame time.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct GtPerson {
     /// Person id.
     pub id: u32,
@@ -50,7 +52,8 @@ pub struct GtPerson {
 }
 
 /// Ground truth at a frame time `t_f = f·50 ms`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct GtFrame {
     /// Frame index.
     pub frame: u64,

@@ -6,10 +6,12 @@ use super::room::Room;
 use quarry_core::rng::SeededRng;
 use quarry_core::{Point2, Pose2, ScanGeometry, SensorId};
 use rand::Rng;
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 /// A simulated scanner: pose and beam model.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct ScannerSim {
     /// Sensor id.
     pub id: SensorId,

@@ -304,3 +304,29 @@ fn new_scenarios_by_name_are_deterministic_and_validated() {
     }
     assert!(Runner::new(bad).is_err());
 }
+
+/// With the default `serde` feature, the data types of the three generators implement
+/// `Serialize` and `Deserialize` (a compile-time check).
+#[cfg(feature = "serde")]
+#[test]
+fn serde_feature_derives_the_data_types() {
+    fn both<T: serde::Serialize + serde::de::DeserializeOwned>() {}
+    both::<Obstacle>();
+    both::<Wall>();
+    both::<Room>();
+    both::<SpeedBand>();
+    both::<Motion>();
+    both::<Visit>();
+    both::<PersonSpec>();
+    both::<PersonState>();
+    both::<ScannerSim>();
+    both::<ClockProfile>();
+    both::<NetworkModel>();
+    both::<GtPerson>();
+    both::<GtFrame>();
+    both::<crate::rgbd::ScenarioId>();
+    both::<crate::rgbd::FrameTruth>();
+    both::<crate::slamot::SlamotScenarioConfig>();
+    both::<crate::slamot::SlamotTruth>();
+    both::<crate::slamot::SlamotFrame>();
+}
