@@ -27,23 +27,25 @@ use quarry_core::{CoreError, LandmarkId, Pose2, wrap_angle};
 use rand::Rng;
 use rand::seq::SliceRandom;
 use rand_distr::{Distribution, Normal, Poisson, StandardNormal};
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
 
 /// Configuration of the simulated SLAMOT scenario. `Default` is S0 (spec §3.2).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+#[cfg_attr(feature = "serde", serde(default))]
 pub struct SlamotScenarioConfig {
-    /// Control period Δt_u [s] (Bailey's FastSLAM simulator default 0.025 s).
+    /// Control period Δt_u \[s\] (Bailey's FastSLAM simulator default 0.025 s).
     pub dt_control: f64,
     /// Observation epoch every `obs_every` control steps (8, i.e. Δt_z = 0.2 s).
     pub obs_every: u32,
-    /// Duration [s] (80 s: targets cross x = 9 → 89 inside the world).
+    /// Duration \[s\] (80 s: targets cross x = 9 → 89 inside the world).
     pub duration: f64,
-    /// Bicycle wheelbase B [m] (4 m).
+    /// Bicycle wheelbase B \[m\] (4 m).
     pub wheelbase: f64,
-    /// Maximum steering angle MAXG [rad] (30°).
+    /// Maximum steering angle MAXG \[rad\] (30°).
     pub max_steer: f64,
     /// Maximum steering rate RATEG [rad/s] (20°/s).
     pub steer_rate: f64,
@@ -59,15 +61,15 @@ pub struct SlamotScenarioConfig {
     pub target_truth_sigma_a: f64,
     /// Odometry noise std of the speed σ_V [m/s] (the paper's 0.3).
     pub sigma_v: f64,
-    /// Odometry noise std of the steering angle σ_G [rad] (the paper's 0.0872).
+    /// Odometry noise std of the steering angle σ_G \[rad\] (the paper's 0.0872).
     pub sigma_g: f64,
-    /// Range noise std σ_r [m] (0.1).
+    /// Range noise std σ_r \[m\] (0.1).
     pub sigma_r: f64,
-    /// Bearing noise std σ_b [rad] (1°).
+    /// Bearing noise std σ_b \[rad\] (1°).
     pub sigma_b: f64,
-    /// Sensor range [m] (30).
+    /// Sensor range \[m\] (30).
     pub max_range: f64,
-    /// Sensor field of view [rad], centred on the heading (2π: all around).
+    /// Sensor field of view \[rad\], centred on the heading (2π: all around).
     pub fov: f64,
     /// Detection probability of a target (1 in S0, 0.9 in S1). Landmarks are always detected.
     pub p_detect: f64,
@@ -138,7 +140,7 @@ impl SlamotScenarioConfig {
         }
     }
 
-    /// Observation period Δt_z [s].
+    /// Observation period Δt_z \[s\].
     pub fn dt_observe(&self) -> f64 {
         self.dt_control * f64::from(self.obs_every)
     }
@@ -210,7 +212,8 @@ impl SlamotScenarioConfig {
 }
 
 /// Ground truth of one control step.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct SlamotTruth {
     /// True robot pose.
     pub robot: Pose2,
@@ -223,13 +226,14 @@ pub struct SlamotTruth {
 }
 
 /// One control step of the scenario: what the robot's sensors report, plus the truth.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct SlamotFrame {
     /// Control step index k (1-based: frame k is the state after k control steps).
     pub k: u64,
-    /// Time [s] = k Δt_u.
+    /// Time \[s\] = k Δt_u.
     pub t: f64,
-    /// Duration of this control step [s].
+    /// Duration of this control step \[s\].
     pub dt: f64,
     /// Odometry (V, G): the commanded control plus noise N(0, diag(σ_V², σ_G²)).
     pub odometry: (f64, f64),
