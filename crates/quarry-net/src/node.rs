@@ -13,6 +13,7 @@
 //!   duplicates are what the server's frame assembler handles.
 
 use crate::NetError;
+use quarry_trackers::TrackerConfig;
 use crate::envelope::{EndOfStream, SimMessage, SimStep};
 use crate::transport::{Subscription, Transport, keys};
 use crate::fusion::encode_dynamic;
@@ -243,7 +244,7 @@ pub fn run_sim_node(
     cfg: &LidarPeopleConfig,
     wait_server: Duration,
 ) -> Result<NodeSummary, NetError> {
-    cfg.validate()?;
+    cfg.validate()?; // the node's entry point: no tracker is built here to validate it
     let t_end = TimeUs((scenario.duration_s * 1e6).round() as i64);
     let mut src = SimSource::new(scenario, k)?;
     let id = src.sensor();
@@ -415,7 +416,7 @@ pub fn run_wall_node(
     cfg: &LidarPeopleConfig,
     opts: &WallNodeOptions,
 ) -> Result<NodeSummary, NetError> {
-    cfg.validate()?;
+    cfg.validate()?; // the node's entry point: no tracker is built here to validate it
     if !(opts.speed.is_finite() && opts.speed > 0.0) {
         return Err(NetError::Config("speed must be finite and positive".into()));
     }

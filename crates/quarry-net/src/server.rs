@@ -62,7 +62,8 @@ struct Core {
 
 impl Core {
     fn new(sensors: &[SensorSpec], cfg: &LidarPeopleConfig) -> Result<Self, NetError> {
-        cfg.validate()?;
+        // validates the configuration (once, where the server's tracker is built from it)
+        let tracker = DefaultLidarTracker::from_config(cfg)?;
         if cfg.calibration == quarry_trackers::lidar_people::Calibration::Icp {
             // the nodes do not publish BackgroundScan messages yet: refuse rather than fuse
             // with uncalibrated poses
@@ -71,7 +72,6 @@ impl Core {
             ));
         }
         let fusion = AssemblerFusion::new(sensors, cfg)?;
-        let tracker = DefaultLidarTracker::from_config(cfg)?;
         Ok(Self {
             server: ServerPipeline::new(fusion, tracker, cfg.frame_period_s),
             run: ServerRun::default(),

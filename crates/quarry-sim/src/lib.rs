@@ -1,8 +1,8 @@
 //! # quarry-sim
 //!
-//! Seeded, deterministic scenario generators with ground truth, one per paper, and readers for
-//! recorded datasets. Every generator takes its seed explicitly: the same seed gives the same
-//! scenario, bit for bit.
+//! Seeded, deterministic scenario generators with ground truth, one per paper (the readers of
+//! real recordings are in quarry-data). Every generator takes its seed explicitly: the same seed
+//! gives the same scenario, bit for bit.
 //!
 //! ```
 //! use quarry_core::rng::seeded;
@@ -14,7 +14,6 @@
 
 mod error;
 pub mod lidar_room;
-pub mod mrclam;
 pub mod rgbd;
 pub mod slamot;
 

@@ -1058,7 +1058,7 @@ pub fn run_scenario_frames(
         |_, smp, o| on_frame(smp, o),
     )?;
     runs.pop()
-        .ok_or_else(|| TrackerError::config("rgbd_person", "no run".into()))
+        .ok_or_else(|| TrackerError::config("rgbd_person", "no run"))
 }
 
 /// Runs several trackers (configuration and odometry feed each) on the same scenario, rendering
@@ -1086,7 +1086,7 @@ pub fn run_scenario_multi(
     let init = f0
         .truth
         .amodal
-        .ok_or_else(|| TrackerError::config("rgbd_person", "target not in view at frame 0".into()))?;
+        .ok_or_else(|| TrackerError::config("rgbd_person", "target not in view at frame 0"))?;
     let w = scene.intrinsics.width;
     let h = scene.intrinsics.height;
     let frame0 =

@@ -9,7 +9,7 @@ use std::time::Instant;
 use quarry_core::{BackgroundModel, MultiTargetTracker, Point2, Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_net::AssemblerFusion;
 use quarry_sim::lidar_room::{GtFrame, RoomEvent, Runner, Scenario};
-use quarry_trackers::TrackerError;
+use quarry_trackers::{TrackerConfig, TrackerError};
 use quarry_trackers::lidar_people::{
     Calibration, CalibrationReport, ClientPipeline, DefaultLidarTracker, DynamicScan, FusedPoints,
     Fusion, LidarPeopleConfig, LidarTrack, PendingCalibration, RowSource, ServerPipeline,

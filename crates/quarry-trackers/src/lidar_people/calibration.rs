@@ -19,7 +19,7 @@
 //! rough pose is taken as exact.
 
 use super::config::{Calibration, LidarPeopleConfig};
-use super::{ClientPipeline, background_of};
+use super::ClientPipeline;
 use crate::TrackerError;
 use quarry_cloud::CloudError;
 use quarry_cloud::calib::{

@@ -3,12 +3,11 @@
 //! implementation over the wire format is quarry-net's `AssemblerFusion`) and tracking
 //! ([`ServerPipeline`]). The in-process run over the room simulator is quarry-repro's.
 
-use super::config::{FusionTime, LidarPeopleConfig};
 use super::tracker::{FusedPoints, LidarTrack};
 use crate::TrackerError;
 use quarry_core::{
-    BackgroundModel, BeamLabel, Clusterer, FrameIndex, MultiTargetTracker, Point2, PolarScan,
-    Pose2, Registration2, ScanGeometry, SensorId, Stamp, TimeUs,
+    BackgroundModel, BeamLabel, Clusterer, FrameIndex, MultiTargetTracker, PolarScan, Pose2,
+    Registration2, SensorId, Stamp, TimeUs,
 };
 use std::time::Instant;
 

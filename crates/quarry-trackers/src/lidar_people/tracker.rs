@@ -3,7 +3,7 @@
 //! blocks a configuration makes (gate, MeanShift, ICP, background model).
 
 use super::config::{LidarPeopleConfig, Preset};
-use crate::TrackerError;
+use crate::{TrackerConfig, TrackerError};
 use quarry_assoc::PositionVelocityGate;
 use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermConfig, SigmaMode};
 use quarry_cloud::cluster::MeanShift;
