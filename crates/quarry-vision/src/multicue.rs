@@ -37,8 +37,8 @@
 
 use crate::VisionError;
 use crate::colour::{HueBinner, rgb_to_grey, rgb_to_hsv};
+use crate::depth_weights::DepthProfile;
 use crate::histogram::{DepthHistogram, Histogram, bhattacharyya, cosine};
-use crate::kernel::DepthProfile;
 use crate::lbp::{LBP_NO_CLASS, LbpMapping};
 use crate::patches::{PatchCell, PatchGrid, PatchHistograms, min_weight};
 use quarry_core::{AppearanceModel, BBox, CoreError, Plane};
