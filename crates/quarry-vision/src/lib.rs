@@ -2,13 +2,13 @@
 //!
 //! Pixel-level building blocks for vision trackers: f32/f64 images and an OpenCV-exact
 //! separable Gaussian blur ([`blur`], [`convert`]), the regular ramp overlay ([`ramp`]), regional
-//! minima ([`minima`]), priority-flood (Meyer) watershed without lines ([`watershed`]), region
-//! adjacency and statistics ([`adjacency`]), region mapping between frames ([`mapping`]), minimum
-//! trajectories and the moving-point test ([`moving_points`]), SIFT ([`sift`]) and descriptor
-//! matching ([`matching`]). Appearance descriptors of spec 001: hue binning ([`colour`]), Ojala
-//! LBP with riu2 / u2 mappings ([`lbp`]), normalised and depth histograms ([`histogram`]),
-//! per-pixel weights including the depth band ([`depth_weights`]) and N×N patch histograms
-//! ([`patches`]).
+//! minima ([`minima`]), priority-flood (Meyer) watershed without lines
+//! ([`watershed`](mod@watershed)), region adjacency and statistics ([`adjacency`]), region mapping
+//! between frames ([`mapping`]), minimum trajectories and the moving-point test
+//! ([`moving_points`]), SIFT ([`sift`]) and descriptor matching ([`matching`]). Appearance
+//! descriptors of spec 001: hue binning ([`colour`]), Ojala LBP with riu2 / u2 mappings
+//! ([`lbp`]), normalised and depth histograms ([`histogram`]), per-pixel weights including the
+//! depth band ([`depth_weights`]) and N×N patch histograms ([`patches`]).
 //!
 //! ```
 //! use quarry_core::{Plane, Segmenter};
