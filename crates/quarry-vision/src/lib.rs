@@ -60,6 +60,7 @@ pub mod ramp;
 pub mod render;
 pub mod segment;
 pub mod sift;
+mod simd;
 pub mod watershed;
 
 pub use adjacency::{RegionAdjacency, RegionStats, region_stats};

@@ -3,11 +3,11 @@
 //! bins; the 0.2 clamp with renormalisation ([`normalize_descriptor`]) and the quantisation to
 //! bytes ([`quantize`]).
 
-use super::fast::{isa, multiversion};
 use super::scale_space::ScaleSpace;
 use super::util::{cv_round, fast_atan2, fast_exp, floor_small, touch_window};
 use super::{DESCRIPTOR_LEN, SiftDescriptor};
 use crate::VisionError;
+use crate::simd::{isa, multiversion};
 use quarry_core::{CoreError, Keypoint, Plane};
 
 #[cfg(feature = "parallel")]
@@ -267,7 +267,7 @@ fn raw_descriptor_body(
     dst
 }
 
-multiversion!(fn raw_descriptor => raw_descriptor_body(
+multiversion!(avx512, avx2: fn raw_descriptor => raw_descriptor_body(
     img: &Plane<f32>,
     ptx: f32,
     pty: f32,

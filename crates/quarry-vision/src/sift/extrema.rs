@@ -4,10 +4,10 @@
 //! removed, optionally the strongest `max_features`).
 
 use super::SiftParams;
-use super::fast::{isa, multiversion};
 use super::orientation::orient;
 use super::scale_space::ScaleSpace;
 use super::util::{cv_round, fmax, fmin};
+use crate::simd::{isa, multiversion};
 use quarry_core::{Keypoint, Plane};
 
 #[cfg(feature = "parallel")]
@@ -138,7 +138,7 @@ fn scan_row_all_layers_body(
     out
 }
 
-multiversion!(fn scan_row_all_layers => scan_row_all_layers_body(
+multiversion!(avx512, avx2: fn scan_row_all_layers => scan_row_all_layers_body(
     gauss: &[Plane<f32>],
     r: usize,
     w: usize,

@@ -3,9 +3,9 @@
 //! 0.8 × the maximum, with the peak position interpolated by a parabola.
 
 use super::extrema::Refined;
-use super::fast::{isa, multiversion};
 use super::scale_space::ScaleSpace;
 use super::util::{cv_round, fast_atan2, fast_exp, touch_window};
+use crate::simd::{isa, multiversion};
 use quarry_core::{Keypoint, Plane};
 
 const ORI_HIST_BINS: usize = 36;
@@ -113,7 +113,7 @@ fn orientation_hist_body(
 /// Longest run of window columns processed at once by the orientation histogram.
 const ORI_RUN: usize = 128;
 
-multiversion!(fn orientation_hist => orientation_hist_body(
+multiversion!(avx512, avx2: fn orientation_hist => orientation_hist_body(
     img: &Plane<f32>,
     r0: usize,
     c0: usize,
