@@ -17,6 +17,18 @@
 //! With the `parallel` feature both passes are split over bands of rows with rayon (images
 //! below [`PAR_MIN_PIXELS`] run on the calling thread); every output value is computed by the
 //! same operations whatever the thread count.
+//!
+//! Why a second blur and not [`crate::blur`]'s kernels: the results would be the same (the test
+//! below checks bit-identity against `gaussian_blur_f32` for every build), but the layout is
+//! not. Routing the pyramid through `blur::blur_rows` (the generic f32/f64, any-border kernels,
+//! AVX2 or AVX-512F) was measured on 2026-12-02 on `photo_gray.png` (`sift_stage_times`, one
+//! thread, 45 runs each, load ≈ 8 on 2 cores): scale space median 44.9–47.1 ms against
+//! 41.9–42.2 ms here, about 4 % of detect + describe, which is the margin by which SIFT meets
+//! its single-thread goal against OpenCV (`docs/PERFORMANCE.md`). The gains here are the
+//! column strips of the vertical pass (its `2r + 1` rows stay in L1), the interior read in
+//! place, one scratch for the whole pyramid and no rayon hand-off for small octaves. The two
+//! share the instruction-set dispatch (`crate::simd`); moving this layout into `blur.rs` for
+//! all callers would leave one kernel instead of two.
 
 use crate::VisionError;
 use crate::blur::{Border, GaussianKernel};
