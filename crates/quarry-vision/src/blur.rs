@@ -11,13 +11,14 @@
 //! Implementation: the symmetric kernel is folded (`k_j (a_{x−j} + a_{x+j})`), each pass walks
 //! contiguous rows with the taps in the outer loop and the pixels in the inner loop, so the inner
 //! loops auto-vectorise and the vertical pass reads whole rows (cache-friendly). On x86-64 CPUs
-//! with AVX2 the same loops are compiled a second time for AVX2 and chosen at run time; Rust
-//! never contracts `a * b + c` into FMA, so both builds give bit-identical results. With the
-//! `parallel` feature both passes are split over rows with rayon; every output value is computed
-//! by the same sequence of floating-point operations whatever the thread count, so the result is
-//! bit-identical to the single-threaded one.
+//! with AVX2 the same loops are compiled a second time for AVX2 and chosen at run time
+//! (`crate::simd`); Rust never contracts `a * b + c` into FMA, so both builds give
+//! bit-identical results. With the `parallel` feature both passes are split over rows with
+//! rayon; every output value is computed by the same sequence of floating-point operations
+//! whatever the thread count, so the result is bit-identical to the single-threaded one.
 
 use crate::VisionError;
+use crate::simd::{isa, multiversion};
 use quarry_core::Plane;
 
 /// Border extrapolation (OpenCV's names).
@@ -291,6 +292,7 @@ fn horizontal_pass<T: BlurSample>(
     border: Border,
 ) {
     let r = k.len() - 1;
+    let level = isa();
     // the source row goes into the middle of `pad`, the reflected borders around it
     let row_fn = |y: usize, dst_row: &mut [T], pad: &mut Vec<T>| {
         pad.resize(w + 2 * r, T::default());
@@ -298,7 +300,7 @@ fn horizontal_pass<T: BlurSample>(
         for i in (0..r).chain(r + w..w + 2 * r) {
             pad[i] = pad[r + border.interpolate(i as isize - r as isize, w)];
         }
-        blur_row(pad, dst_row, k);
+        blur_row(level, pad, dst_row, k);
     };
     #[cfg(feature = "parallel")]
     {
@@ -321,28 +323,14 @@ fn horizontal_pass<T: BlurSample>(
     }
 }
 
-/// One horizontal output row; dispatches to an AVX2 build of the same loop when the CPU has it.
-/// Without FMA contraction (Rust never fuses `a * b + c`) the AVX2 build performs exactly the
-/// same IEEE operations per pixel, so results are bit-identical on every x86-64 CPU.
-#[inline]
-fn blur_row<T: BlurSample>(pad: &[T], out: &mut [T], k: &[T]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above); the function is otherwise safe.
-        unsafe {
-            blur_row_avx2(pad, out, k);
-        }
-        return;
-    }
-    blur_row_body(pad, out, k);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn blur_row_avx2<T: BlurSample>(pad: &[T], out: &mut [T], k: &[T]) {
-    blur_row_body(pad, out, k);
-}
+multiversion!(avx2:
+    /// One horizontal output row, also compiled for AVX2 and dispatched at run time
+    /// ([`crate::simd`]). Without FMA contraction (Rust never fuses `a * b + c`) the AVX2 build
+    /// performs exactly the same IEEE operations per pixel, so results are bit-identical on every
+    /// x86-64 CPU.
+    #[inline]
+    fn blur_row<[T: BlurSample]> => blur_row_body(pad: &[T], out: &mut [T], k: &[T])
+);
 
 /// Pixels per register block: the accumulators of one block stay in registers over all taps
 /// (8 AVX2 registers for f64, 4 for f32).
@@ -352,7 +340,7 @@ const BLOCK: usize = 32;
 /// order (j = 1, 2, …) for every pixel. Blocks of [`BLOCK`] pixels keep their accumulators in
 /// registers while the taps are walked; the per-pixel operation sequence is the same as a
 /// taps-outer loop, so the result does not depend on the blocking.
-// Inlined into the AVX2 wrapper so that the loop is compiled for AVX2 there.
+// Inlined into the AVX2 build of `multiversion!` so that the loop is compiled for AVX2 there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn blur_row_body<T: BlurSample>(pad: &[T], out: &mut [T], k: &[T]) {
@@ -397,7 +385,8 @@ fn vertical_pass<T: BlurSample>(
     k: &[T],
     border: Border,
 ) {
-    let row_fn = |y: usize, out: &mut [T]| vertical_row(src, out, w, h, y, k, border);
+    let level = isa();
+    let row_fn = |y: usize, out: &mut [T]| vertical_row(level, src, out, w, h, y, k, border);
     #[cfg(feature = "parallel")]
     {
         use rayon::prelude::*;
@@ -417,46 +406,23 @@ fn vertical_pass<T: BlurSample>(
     }
 }
 
-/// One vertical output row (dispatching like [`blur_row`]).
-#[inline]
-fn vertical_row<T: BlurSample>(
-    src: &[T],
-    out: &mut [T],
-    w: usize,
-    h: usize,
-    y: usize,
-    k: &[T],
-    border: Border,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above); the function is otherwise safe.
-        unsafe {
-            vertical_row_avx2(src, out, w, h, y, k, border);
-        }
-        return;
-    }
-    vertical_row_body(src, out, w, h, y, k, border);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn vertical_row_avx2<T: BlurSample>(
-    src: &[T],
-    out: &mut [T],
-    w: usize,
-    h: usize,
-    y: usize,
-    k: &[T],
-    border: Border,
-) {
-    vertical_row_body(src, out, w, h, y, k, border);
-}
+multiversion!(avx2:
+    /// One vertical output row (dispatching like [`blur_row`]).
+    #[inline]
+    fn vertical_row<[T: BlurSample]> => vertical_row_body(
+        src: &[T],
+        out: &mut [T],
+        w: usize,
+        h: usize,
+        y: usize,
+        k: &[T],
+        border: Border,
+    )
+);
 
 /// `out[x] = k0 src[y][x] + Σ_j k_j (src[y − j][x] + src[y + j][x])` (same order of operations
 /// as [`blur_row_body`]; blocks of [`BLOCK`] columns keep their accumulators in registers).
-// Inlined into the AVX2 wrapper so that the loop is compiled for AVX2 there.
+// Inlined into the AVX2 build of `multiversion!` so that the loop is compiled for AVX2 there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn vertical_row_body<T: BlurSample>(
@@ -526,7 +492,7 @@ pub fn gaussian_blur_1d(
         .map(|i| signal[border.interpolate(i as isize - r as isize, n)])
         .collect();
     let mut out = vec![0.0; n];
-    blur_row(&pad, &mut out, k);
+    blur_row(isa(), &pad, &mut out, k);
     Ok(out)
 }
 

@@ -2,12 +2,13 @@
 //!
 //! Pixel-level building blocks for vision trackers: f32/f64 images and an OpenCV-exact
 //! separable Gaussian blur ([`blur`], [`convert`]), the regular ramp overlay ([`ramp`]), regional
-//! minima ([`minima`]), priority-flood (Meyer) watershed without lines ([`watershed`]), region
-//! adjacency and statistics ([`adjacency`]), region mapping between frames ([`mapping`]), minimum
-//! trajectories and the moving-point test ([`motion`]), SIFT ([`sift`]) and descriptor matching
-//! ([`matching`]). Appearance descriptors of spec 001: hue binning ([`colour`]), Ojala LBP with
-//! riu2 / u2 mappings ([`lbp`]), normalised and depth histograms ([`histogram`]), pixel kernels
-//! including the depth band ([`kernel`]) and N×N patch histograms ([`patches`]).
+//! minima ([`minima`]), priority-flood (Meyer) watershed without lines
+//! ([`watershed`](mod@watershed)), region adjacency and statistics ([`adjacency`]), region mapping
+//! between frames ([`mapping`]), minimum trajectories and the moving-point test
+//! ([`moving_points`]), SIFT ([`sift`]) and descriptor matching ([`matching`]). Appearance
+//! descriptors of spec 001: hue binning ([`colour`]), Ojala LBP with riu2 / u2 mappings
+//! ([`lbp`]), normalised and depth histograms ([`histogram`]), per-pixel weights including the
+//! depth band ([`depth_weights`]) and N×N patch histograms ([`patches`]).
 //!
 //! ```
 //! use quarry_core::{Plane, Segmenter};
@@ -42,16 +43,16 @@ pub mod adjacency;
 pub mod blur;
 pub mod colour;
 pub mod convert;
+pub mod depth_weights;
 mod error;
 pub mod histogram;
 #[cfg(feature = "io")]
 pub mod io;
-pub mod kernel;
 pub mod lbp;
 pub mod mapping;
 pub mod matching;
 pub mod minima;
-pub mod motion;
+pub mod moving_points;
 pub mod multicue;
 pub mod patches;
 pub mod ramp;
@@ -59,19 +60,20 @@ pub mod ramp;
 pub mod render;
 pub mod segment;
 pub mod sift;
+mod simd;
 pub mod watershed;
 
 pub use adjacency::{RegionAdjacency, RegionStats, region_stats};
 pub use blur::{Border, GaussianKernel, gaussian_blur_f32, gaussian_blur_f64};
 pub use colour::HueBinner;
+pub use depth_weights::{DepthBand, PixelWeight};
 pub use error::VisionError;
 pub use histogram::{DepthHistogram, Histogram};
-pub use kernel::{DepthBand, PixelWeight};
 pub use lbp::LbpMapping;
 pub use mapping::{LinkKind, RegionMapping};
 pub use matching::{BruteForceL2, DMatch, DescriptorMatcher, KdTreeMatcher, MatchOptions};
 pub use minima::{Connectivity, Minima, regional_minima};
-pub use motion::{MinimumTrajectories, MotionStats, MotionTest};
+pub use moving_points::{MinimumTrajectories, MotionStats, MotionTest};
 pub use multicue::{
     CandidateScore, PatchDescriptor, PatchModelConfig, PatchMultiCueModel, RgbdFeatures, RgbdFrame,
 };

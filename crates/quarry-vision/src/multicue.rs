@@ -1,5 +1,5 @@
 //! The patch-based multi-cue appearance model of spec 001 (eqs. 4-8, 12) and the whole-target
-//! colour-texture baseline (the role of the paper's reference [12], spec §5.5).
+//! colour-texture baseline (the role of the paper's reference \[12\], spec §5.5).
 //!
 //! * [`RgbdFeatures`]: the per-frame maps (hue bin, LBP class, depth in metres), computed once per
 //!   frame over a region of interest (the union of the candidate boxes), not the whole image.
@@ -37,8 +37,8 @@
 
 use crate::VisionError;
 use crate::colour::{HueBinner, rgb_to_grey, rgb_to_hsv};
+use crate::depth_weights::DepthProfile;
 use crate::histogram::{DepthHistogram, Histogram, bhattacharyya, cosine};
-use crate::kernel::DepthProfile;
 use crate::lbp::{LBP_NO_CLASS, LbpMapping};
 use crate::patches::{PatchCell, PatchGrid, PatchHistograms, min_weight};
 use quarry_core::{AppearanceModel, BBox, CoreError, Plane};

@@ -12,7 +12,7 @@
 //!
 //! ```
 //! use quarry_core::{BBox, Plane};
-//! use quarry_vision::kernel::{DepthBand, DepthProfile};
+//! use quarry_vision::depth_weights::{DepthBand, DepthProfile};
 //! use quarry_vision::patches::{FeatureMaps, PatchGrid, patch_histograms};
 //! let colour = Plane::new(40, 40, 3u8);
 //! let texture = Plane::new(40, 40, 8u8);
@@ -26,8 +26,8 @@
 //! ```
 
 use crate::VisionError;
+use crate::depth_weights::PixelWeight;
 use crate::histogram::Histogram;
-use crate::kernel::PixelWeight;
 use quarry_core::{BBox, CoreError, Plane};
 
 /// An N×N patch grid (spec default N = 4).

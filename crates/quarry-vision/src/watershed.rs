@@ -28,7 +28,7 @@
 //! - inside a plateau without a lower neighbour, the level's first-in-first-out flood,
 //!   replayed per plateau component from its entry pixels sorted by rank.
 //!
-//! One row-wise pass (vectorised; an AVX2 build is dispatched at run time like the blur's)
+//! One row-wise pass (vectorised; an AVX2 build is dispatched at run time by `crate::simd`)
 //! codes each pixel with the direction of its lowest neighbour or a tie/plateau/pit marker; the
 //! few tie and plateau pixels are resolved in value order; one sweep then copies labels down
 //! the labeller chains. [`RampBlurWatershed`](crate::RampBlurWatershed) and [`watershed`] also
@@ -50,6 +50,7 @@
 
 use crate::VisionError;
 use crate::minima::{Connectivity, Minima, Relief, check_relief, regional_minima};
+use crate::simd::{isa, multiversion};
 use quarry_core::{MinimumInfo, Plane, Segmentation};
 
 /// Options of [`flood`].
@@ -346,38 +347,18 @@ const MASK_CODE: [u8; 256] = {
     t
 };
 
-/// The codes of one row of interior pixels `c` (not seeds) from their neighbour rows `nb` in
-/// visiting order; dispatches to an AVX2 build of the same loops when the CPU has it (the
-/// comparisons are exact, so both builds give the same codes).
-#[inline]
-fn code_row<T: Relief, const K: usize>(
-    c: &[T],
-    nb: [&[T]; K],
-    out: &mut [u8],
-    scratch: &mut RowScratch<T>,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked just above); the function is otherwise safe.
-        unsafe {
-            code_row_avx2(c, nb, out, scratch);
-        }
-        return;
-    }
-    code_row_body(c, nb, out, scratch);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn code_row_avx2<T: Relief, const K: usize>(
-    c: &[T],
-    nb: [&[T]; K],
-    out: &mut [u8],
-    scratch: &mut RowScratch<T>,
-) {
-    code_row_body(c, nb, out, scratch);
-}
+multiversion!(avx2:
+    /// The codes of one row of interior pixels `c` (not seeds) from their neighbour rows `nb` in
+    /// visiting order; also compiled for AVX2 and dispatched at run time ([`crate::simd`]; the
+    /// comparisons are exact, so both builds give the same codes).
+    #[inline]
+    fn code_row<[T: Relief, const K: usize]> => code_row_body(
+        c: &[T],
+        nb: [&[T]; K],
+        out: &mut [u8],
+        scratch: &mut RowScratch<T>,
+    )
+);
 
 /// [`code_row`] as whole-row passes the compiler vectorises: the least neighbour, the mask of
 /// the neighbours equal to it, then the code.
@@ -434,6 +415,7 @@ fn classify<T: Relief>(
         min: d[..w].to_vec(),
         mask: vec![0; w],
     };
+    let level = isa();
     for y in 0..h {
         let row = y * w;
         let out = &mut codes[row..row + w];
@@ -453,9 +435,10 @@ fn classify<T: Relief>(
                     &down[1..=l],
                     &down[2..],
                 ];
-                code_row(c, nb, inner, &mut scratch);
+                code_row(level, c, nb, inner, &mut scratch);
             } else {
                 code_row(
+                    level,
                     c,
                     [&up[1..=l], &mid[..l], &mid[2..], &down[1..=l]],
                     inner,

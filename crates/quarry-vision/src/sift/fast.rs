@@ -8,52 +8,32 @@
 //! - both passes are register-blocked: a block of [`LANES`] outputs is accumulated over all taps
 //!   in registers (`acc = k0·c; acc += k_j·(a + b)` for j = 1..=r, in that order, exactly the
 //!   reference's per-pixel order), so the output is written once instead of once per tap;
-//! - the loops are compiled three times (baseline x86-64, AVX2, AVX-512F) and chosen at run time.
-//!   Rust never contracts `a * b + c` into a fused multiply-add, so the three builds perform the
-//!   same IEEE operations and give bit-identical results;
+//! - the loops are compiled three times (baseline x86-64, AVX2, AVX-512F) and chosen at run time
+//!   ([`crate::simd`]). Rust never contracts `a * b + c` into a fused multiply-add, so the
+//!   three builds perform the same IEEE operations and give bit-identical results;
 //! - no finiteness scan (the scale space checks its input once; blurs of finite images are
 //!   finite).
 //!
 //! With the `parallel` feature both passes are split over bands of rows with rayon (images
 //! below [`PAR_MIN_PIXELS`] run on the calling thread); every output value is computed by the
 //! same operations whatever the thread count.
+//!
+//! Why a second blur and not [`crate::blur`]'s kernels: the results would be the same (the test
+//! below checks bit-identity against `gaussian_blur_f32` for every build), but the layout is
+//! not. Routing the pyramid through `blur::blur_rows` (the generic f32/f64, any-border kernels,
+//! AVX2 or AVX-512F) was measured on 2026-12-02 on `photo_gray.png` (`sift_stage_times`, one
+//! thread, 45 runs each, load ≈ 8 on 2 cores): scale space median 44.9–47.1 ms against
+//! 41.9–42.2 ms here, about 4 % of detect + describe, which is the margin by which SIFT meets
+//! its single-thread goal against OpenCV (`docs/PERFORMANCE.md`). The gains here are the
+//! column strips of the vertical pass (its `2r + 1` rows stay in L1), the interior read in
+//! place, one scratch for the whole pyramid and no rayon hand-off for small octaves. The two
+//! share the instruction-set dispatch (`crate::simd`); moving this layout into `blur.rs` for
+//! all callers would leave one kernel instead of two.
 
 use crate::VisionError;
 use crate::blur::{Border, GaussianKernel};
+use crate::simd::{Isa, isa, multiversion};
 use quarry_core::Plane;
-
-/// Defines `$name(level, args..)`, which runs `$body(args..)` compiled for the best instruction
-/// set of `level` (the body must be `#[inline(always)]` so that it is compiled inside each
-/// wrapper). Without FMA contraction (Rust never fuses `a * b + c`) every build performs the
-/// same IEEE operations, so results do not depend on the CPU.
-macro_rules! multiversion {
-    ($vis:vis fn $name:ident => $body:ident ($($arg:ident : $ty:ty),* $(,)?) -> $ret:ty) => {
-        $vis fn $name(level: $crate::sift::fast::Isa, $($arg: $ty),*) -> $ret {
-            #[cfg(target_arch = "x86_64")]
-            #[target_feature(enable = "avx512f")]
-            fn avx512($($arg: $ty),*) -> $ret {
-                $body($($arg),*)
-            }
-            #[cfg(target_arch = "x86_64")]
-            #[target_feature(enable = "avx2")]
-            fn avx2($($arg: $ty),*) -> $ret {
-                $body($($arg),*)
-            }
-            match level {
-                #[cfg(target_arch = "x86_64")]
-                #[allow(unsafe_code)]
-                // SAFETY: `level` comes from `isa()`, so the CPU supports AVX-512F.
-                $crate::sift::fast::Isa::Avx512 => unsafe { avx512($($arg),*) },
-                #[cfg(target_arch = "x86_64")]
-                #[allow(unsafe_code)]
-                // SAFETY: `level` comes from `isa()`, so the CPU supports AVX2.
-                $crate::sift::fast::Isa::Avx2 => unsafe { avx2($($arg),*) },
-                $crate::sift::fast::Isa::Base => $body($($arg),*),
-            }
-        }
-    };
-}
-pub(super) use multiversion;
 
 /// Outputs accumulated together in registers.
 const LANES: usize = 32;
@@ -65,29 +45,6 @@ const PAR_MIN_PIXELS: usize = 128 * 128;
 /// Rows per parallel task.
 #[cfg(feature = "parallel")]
 const ROWS_PER_TASK: usize = 16;
-
-/// The instruction set the loops were compiled for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Isa {
-    Base,
-    #[cfg(target_arch = "x86_64")]
-    Avx2,
-    #[cfg(target_arch = "x86_64")]
-    Avx512,
-}
-
-pub(super) fn isa() -> Isa {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            return Isa::Avx512;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Isa::Avx2;
-        }
-    }
-    Isa::Base
-}
 
 /// The half kernel `k_0 … k_r` of `cv2.GaussianBlur(.., (0, 0), sigma)` on float images,
 /// rounded to f32 (as [`crate::blur::gaussian_blur_f32`]).
@@ -120,7 +77,7 @@ pub(super) fn blur(src: &Plane<f32>, k: &[f32], tmp: &mut Vec<f32>) -> Plane<f32
 fn horizontal(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], level: Isa) {
     let run = |s: &[f32], d: &mut [f32]| {
         let mut pad = Vec::with_capacity(w + 2 * (k.len() - 1));
-        dispatch_h(s, d, w, k, &mut pad, level);
+        dispatch_h(level, s, d, w, k, &mut pad);
     };
     #[cfg(feature = "parallel")]
     if src.len() >= PAR_MIN_PIXELS {
@@ -134,7 +91,7 @@ fn horizontal(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], level: Isa) {
 }
 
 fn vertical(src: &[f32], dst: &mut [f32], w: usize, h: usize, k: &[f32], level: Isa) {
-    let run = |y0: usize, d: &mut [f32]| dispatch_v(src, d, w, h, y0, k, level);
+    let run = |y0: usize, d: &mut [f32]| dispatch_v(level, src, d, w, h, y0, k);
     #[cfg(feature = "parallel")]
     if src.len() >= PAR_MIN_PIXELS {
         use rayon::prelude::*;
@@ -146,62 +103,27 @@ fn vertical(src: &[f32], dst: &mut [f32], w: usize, h: usize, k: &[f32], level: 
     run(0, dst);
 }
 
-fn dispatch_h(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>, level: Isa) {
-    match level {
-        #[cfg(target_arch = "x86_64")]
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX-512F (checked by `isa`); the function is otherwise safe.
-        Isa::Avx512 => unsafe { h_avx512(src, dst, w, k, pad) },
-        #[cfg(target_arch = "x86_64")]
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked by `isa`); the function is otherwise safe.
-        Isa::Avx2 => unsafe { h_avx2(src, dst, w, k, pad) },
-        Isa::Base => h_body(src, dst, w, k, pad),
-    }
-}
+multiversion!(avx512, avx2: fn dispatch_h => h_body(
+    src: &[f32],
+    dst: &mut [f32],
+    w: usize,
+    k: &[f32],
+    pad: &mut Vec<f32>,
+));
 
-fn dispatch_v(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32], level: Isa) {
-    match level {
-        #[cfg(target_arch = "x86_64")]
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX-512F (checked by `isa`); the function is otherwise safe.
-        Isa::Avx512 => unsafe { v_avx512(src, dst, w, h, y0, k) },
-        #[cfg(target_arch = "x86_64")]
-        #[allow(unsafe_code)]
-        // SAFETY: the CPU supports AVX2 (checked by `isa`); the function is otherwise safe.
-        Isa::Avx2 => unsafe { v_avx2(src, dst, w, h, y0, k) },
-        Isa::Base => v_body(src, dst, w, h, y0, k),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn h_avx512(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
-    h_body(src, dst, w, k, pad);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn h_avx2(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
-    h_body(src, dst, w, k, pad);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn v_avx512(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]) {
-    v_body(src, dst, w, h, y0, k);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn v_avx2(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]) {
-    v_body(src, dst, w, h, y0, k);
-}
+multiversion!(avx512, avx2: fn dispatch_v => v_body(
+    src: &[f32],
+    dst: &mut [f32],
+    w: usize,
+    h: usize,
+    y0: usize,
+    k: &[f32],
+));
 
 /// Horizontal pass over whole rows of `src` into `dst` (same length, a multiple of `w`).
 /// Interior pixels (whose taps all fall inside the row) read the row directly; the at most
 /// `r` pixels at each end read a small padded copy of the row's end.
-// Inlined into the ISA wrappers so that the loops are compiled for each ISA there.
+// Inlined into the builds of `multiversion!` so that the loops are compiled for each ISA there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn h_body(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
@@ -324,16 +246,7 @@ mod tests {
     /// and kernels wider than the image.
     #[test]
     fn blur_is_bit_identical_to_reference() {
-        let mut levels = vec![Isa::Base];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                levels.push(Isa::Avx2);
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                levels.push(Isa::Avx512);
-            }
-        }
+        let levels = Isa::all_supported();
         let mut seed = 12_345u32;
         for &(w, h) in &[
             (1usize, 1usize),

@@ -12,7 +12,7 @@
 //!
 //! ```
 //! use quarry_core::Plane;
-//! use quarry_vision::kernel::{DepthBand, DepthClass, DepthProfile, PixelWeight};
+//! use quarry_vision::depth_weights::{DepthBand, DepthClass, DepthProfile, PixelWeight};
 //! let depth = Plane::from_fn(4, 1, |x, _| [1.0f32, 3.0, 3.2, 6.0][x as usize]);
 //! let band = DepthBand::new(&depth, 3.0, 0.3, DepthProfile::Flat)?;
 //! assert_eq!((0..4).map(|u| band.weight(u, 0)).collect::<Vec<_>>(), vec![0.0, 1.0, 1.0, 0.0]);
