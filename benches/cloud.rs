@@ -24,8 +24,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use quarry::cloud::background::{ChiSquareBackground, ChiSquareConfig, VarianceChi2Test};
 use quarry::cloud::cluster::{MeanShift, Seeding};
 use quarry::cloud::icp::{Correspondence, Icp2d, ModelShape};
-use quarry::net::proto::wire::{Header, Kind, Message, Payload};
 use quarry::core::{Point2, PolarScan, Pose2, Registration2, ScanGeometry, SensorId, TimeUs};
+use quarry::net::proto::wire::{Header, Kind, Message, Payload};
 
 fn bench_data() -> Option<PathBuf> {
     let p = std::env::var_os("QUARRY_SHARED").map_or_else(

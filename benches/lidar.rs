@@ -26,8 +26,8 @@ use std::time::Duration;
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use quarry::cloud::background::ChiSquareBackground;
 use quarry::core::{Pose2, ScanGeometry, SensorId, TimeUs};
-use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
 use quarry::net::AssemblerFusion;
+use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
 use quarry::trackers::lidar_people::{
     ClientPipeline, DefaultLidarTracker, DynamicScan, LidarPeopleConfig, ServerPipeline,
     background_of,

@@ -6,8 +6,8 @@
 //! Run: `cargo run --release --example lidar_calib`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use quarry::sim::lidar_room::Scenario;
 use quarry::repro::lidar::calibrate_scenario;
+use quarry::sim::lidar_room::Scenario;
 use quarry::trackers::lidar_people::{Calibration, LidarPeopleConfig};
 
 fn main() {

@@ -9,8 +9,8 @@
 
 use quarry::core::TimeUs;
 use quarry::net::{LocalBus, run_sim_node, run_sim_server};
-use quarry::sim::lidar_room::{Scenario, SpeedBand};
 use quarry::repro::lidar::run_room_default;
+use quarry::sim::lidar_room::{Scenario, SpeedBand};
 use quarry::trackers::lidar_people::LidarPeopleConfig;
 use std::time::Duration;
 

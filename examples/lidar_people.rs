@@ -6,8 +6,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry::core::TimeUs;
-use quarry::sim::lidar_room::{Scenario, SpeedBand};
 use quarry::repro::lidar::{evaluate_paper003, run_room_default};
+use quarry::sim::lidar_room::{Scenario, SpeedBand};
 use quarry::trackers::lidar_people::{LidarPeopleConfig, gate_of};
 
 fn main() {

@@ -4,10 +4,10 @@
 //! Run: `cargo run --release --example lidar_recorded -- ../shared/data/leg-tracker positive_1`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use quarry::core::Pose2;
 use quarry::data::leg_labels::parse_legs_csv;
 use quarry::data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry::repro::lidar::score_labelled;
-use quarry::core::Pose2;
 use quarry::trackers::lidar_people::{LidarPeopleConfig, run_recorded};
 use std::path::PathBuf;
 

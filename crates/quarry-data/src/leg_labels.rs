@@ -106,5 +106,4 @@ mod tests {
         assert!(parse_legs_csv("stamp_s,leg_index,x_m,y_m,frame_id\n1,0,1\n").is_err());
         assert!(parse_legs_csv("").is_err());
     }
-
 }

@@ -7,7 +7,9 @@ use crate::proto::wire::{FLAG_CLOCK_SYNCED, Header, Kind, WireError, encode_scan
 use crate::proto::{FrameAssembler, FrameConfig, SensorConfig};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_trackers::TrackerError;
-use quarry_trackers::lidar_people::{DynamicScan, FusedPoints, Fusion, FusionTime, LidarPeopleConfig};
+use quarry_trackers::lidar_people::{
+    DynamicScan, FusedPoints, Fusion, FusionTime, LidarPeopleConfig,
+};
 
 /// Encodes a client's dynamic scan as wire datagrams (spec §7.1; several parts when it has more
 /// than 350 points).
@@ -56,8 +58,7 @@ impl AssemblerFusion {
             max_latency_us: (cfg.l_max_s * 1e6).round() as i64,
             ..FrameConfig::default()
         };
-        let assembler =
-            FrameAssembler::new(fc, &sc, TimeUs(0))?;
+        let assembler = FrameAssembler::new(fc, &sc, TimeUs(0))?;
         Ok(Self {
             assembler,
             fusion: cfg.fusion,
@@ -99,4 +100,3 @@ impl Fusion for AssemblerFusion {
             .collect())
     }
 }
-

@@ -13,16 +13,16 @@
 //!   duplicates are what the server's frame assembler handles.
 
 use crate::NetError;
-use quarry_trackers::TrackerConfig;
 use crate::envelope::{EndOfStream, SimMessage, SimStep};
-use crate::transport::{Subscription, Transport, keys};
 use crate::fusion::encode_dynamic;
 use crate::proto::wire::{Header, Hello, Kind, Message, Payload};
 use crate::proto::{ClockSync, SyncMode};
+use crate::transport::{Subscription, Transport, keys};
 use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
 use quarry_data::scans_csv::ScanCsvReader;
 #[cfg(feature = "sim")]
 use quarry_sim::lidar_room::{RoomEvent, Runner, Scenario};
+use quarry_trackers::TrackerConfig;
 use quarry_trackers::lidar_people::{ClientPipeline, LidarPeopleConfig, background_of};
 use serde::Serialize;
 use std::io::Read;

@@ -13,13 +13,13 @@
 
 use crate::NetError;
 use crate::envelope::{SimMessage, SimStep, TrackMessage};
-use crate::transport::{Transport, keys, sensor_of_key};
+use crate::fusion::AssemblerFusion;
 use crate::proto::FusionStats;
 use crate::proto::wire::{Header, Kind, Message, Payload};
+use crate::transport::{Transport, keys, sensor_of_key};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 #[cfg(feature = "sim")]
 use quarry_sim::lidar_room::FRAME_US;
-use crate::fusion::AssemblerFusion;
 use quarry_trackers::lidar_people::{
     DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
 };

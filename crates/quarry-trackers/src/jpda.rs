@@ -166,7 +166,10 @@ impl JpdaTracker {
             ));
         }
         if !(0.0..=1.0).contains(&cfg.survival) {
-            return Err(TrackerError::config("cv_jpda", "survival must be in [0, 1]"));
+            return Err(TrackerError::config(
+                "cv_jpda",
+                "survival must be in [0, 1]",
+            ));
         }
         // Validates pd, prob_gate and clutter_density.
         Jpda::new(cfg.pd, cfg.prob_gate, cfg.clutter_density)?;

@@ -152,7 +152,6 @@ pub struct LidarSummary {
     pub calibration: Option<lidar_people::CalibrationReport>,
 }
 
-
 /// Runs one simulated band and returns the summary (used by `quarry demo` too).
 pub fn run_sim_band(
     band: SpeedBand,
@@ -263,11 +262,7 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
         .as_deref()
         .map(NetworkModel::parse)
         .transpose()?;
-    let clock = args
-        .clock
-        .as_deref()
-        .map(ClockProfile::parse)
-        .transpose()?;
+    let clock = args.clock.as_deref().map(ClockProfile::parse).transpose()?;
     let (summary, run, window, sc) = if let Some(name) = &args.scenario {
         let sc =
             Scenario::by_name(name, args.seed).map_err(|e| format!("--scenario {name}: {e}"))?;
@@ -298,9 +293,9 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
         let gt_path = out.join("gt_people.csv");
         let f = std::fs::File::create(&gt_path).map_err(at(&gt_path))?;
         let names: Vec<&str> = sc.scanners.iter().map(|s| s.name.as_str()).collect();
-        let mut w = GtWriter::new(std::io::BufWriter::new(f), &names).map_err(at(&gt_path))?;
+        let mut w = GtWriter::new(std::io::BufWriter::new(f), &names)?;
         for g in &run.gt {
-            w.write(g).map_err(at(&gt_path))?;
+            w.write(g)?;
         }
         let js = serde_json::to_string_pretty(&summary)?;
         let mpath = out.join("metrics.json");
@@ -402,7 +397,7 @@ fn run_recorded_cmd(
     let (polar, stats) =
         read_scans(scans, geometry, opts).map_err(|e| format!("{}: {e}", scans.display()))?;
     if polar.is_empty() {
-        return Err(format!("{}: no scans", scans.display()));
+        return Err(format!("{}: no scans", scans.display()).into());
     }
     let run = lidar_people::run_recorded(cfg, &geometry, Pose2::default(), &polar, 3.0)?;
     let labelled = match &args.legs {

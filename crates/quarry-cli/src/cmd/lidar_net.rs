@@ -4,9 +4,9 @@
 use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, at};
 use clap::Args;
+use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_data::scans_csv::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
 use quarry_net::proto::SyncMode;
-use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_net::{
     CsvSource, NodeSummary, SensorSpec, ServerRun, SimSource, Transport, WallNodeOptions,
     WallServerOptions,
@@ -91,8 +91,7 @@ fn open_transport(z: &ZenohArgs) -> Result<Box<dyn Transport>, CmdError> {
         listen: z.listen.clone(),
         connect: z.connect.clone(),
         multicast_scouting: z.multicast,
-    })
-    ?;
+    })?;
     Ok(Box::new(t))
 }
 
@@ -202,7 +201,13 @@ fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
         }
         let sc = scenario(&a.room, &cfg)?;
         let t = open_transport(&a.net)?;
-        return Ok(quarry_net::run_sim_node(t.as_ref(), sc, a.scanner, &cfg, wait)?);
+        return Ok(quarry_net::run_sim_node(
+            t.as_ref(),
+            sc,
+            a.scanner,
+            &cfg,
+            wait,
+        )?);
     }
     let opts = WallNodeOptions {
         speed: a.speed,
@@ -223,8 +228,7 @@ fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
                     .meta_key
                     .as_deref()
                     .ok_or("--meta needs --meta-key (the recording's key in the file)")?;
-                let text =
-                    std::fs::read_to_string(m).map_err(at(m))?;
+                let text = std::fs::read_to_string(m).map_err(at(m))?;
                 parse_scan_meta(&text, key)?
             }
             None => ScanGeometry::utm30lx(),
@@ -242,12 +246,22 @@ fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
         .map_err(|e| format!("{}: {e}", path.display()))?;
         let mut src = CsvSource::new(reader, id, geometry);
         let t = open_transport(&a.net)?;
-        return Ok(quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts)?);
+        return Ok(quarry_net::run_wall_node(
+            t.as_ref(),
+            &mut src,
+            &cfg,
+            &opts,
+        )?);
     }
     let sc = scenario(&a.room, &cfg)?;
     let mut src = SimSource::new(sc, a.scanner)?;
     let t = open_transport(&a.net)?;
-    Ok(quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts)?)
+    Ok(quarry_net::run_wall_node(
+        t.as_ref(),
+        &mut src,
+        &cfg,
+        &opts,
+    )?)
 }
 
 /// Arguments of `quarry lidar-server`.

@@ -98,7 +98,10 @@ impl ClockSync {
         }
         let s = ntp_sample(t1, t2, t3, t4);
         if s.delay_us < 0.0 {
-            return Err(CoreError::invalid("sync reply", "negative round-trip delay"));
+            return Err(CoreError::invalid(
+                "sync reply",
+                "negative round-trip delay",
+            ));
         }
         self.samples.push_back(s);
         while self.samples.len() > self.window.max(1) {

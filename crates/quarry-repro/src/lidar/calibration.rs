@@ -48,8 +48,8 @@ pub fn rough_poses(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Vec<Pose2>>
             .map(|p| Pose2::new(p[0], p[1], p[2].to_radians()))
             .collect());
     }
-    let mut rough = sc
-        .hand_measured_poses(cfg.calib_max_shift_m, cfg.calib_max_rot_deg.to_radians())?;
+    let mut rough =
+        sc.hand_measured_poses(cfg.calib_max_shift_m, cfg.calib_max_rot_deg.to_radians())?;
     rough[r] = sc.scanners[r].pose;
     Ok(rough)
 }
@@ -59,10 +59,7 @@ pub fn rough_poses(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Vec<Pose2>>
 /// (`cfg.calibration` is taken as `icp`). This is the spec's `calib` scenario run on its own:
 /// `calibrate_scenario(Scenario::calib(seed), &cfg)` returns the recovered poses and their
 /// errors against the truth.
-pub fn calibrate_scenario(
-    sc: Scenario,
-    cfg: &LidarPeopleConfig,
-) -> Result<CalibrationReport> {
+pub fn calibrate_scenario(sc: Scenario, cfg: &LidarPeopleConfig) -> Result<CalibrationReport> {
     let cfg = LidarPeopleConfig {
         calibration: Calibration::Icp,
         ..cfg.clone()
@@ -88,4 +85,3 @@ pub fn calibrate_scenario(
             .into(),
     ))
 }
-

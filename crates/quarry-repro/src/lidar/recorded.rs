@@ -77,4 +77,3 @@ pub fn score_labelled(
     out.median_m = errs.get(errs.len() / 2).copied().unwrap_or(f64::NAN);
     Ok(out)
 }
-

@@ -6,15 +6,17 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::time::Instant;
 
-use quarry_core::{BackgroundModel, MultiTargetTracker, Point2, Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry_core::{
+    BackgroundModel, MultiTargetTracker, Point2, Pose2, ScanGeometry, SensorId, TimeUs,
+};
 use quarry_net::AssemblerFusion;
 use quarry_sim::lidar_room::{GtFrame, RoomEvent, Runner, Scenario};
-use quarry_trackers::{TrackerConfig, TrackerError};
 use quarry_trackers::lidar_people::{
     Calibration, CalibrationReport, ClientPipeline, DefaultLidarTracker, DynamicScan, FusedPoints,
     Fusion, LidarPeopleConfig, LidarTrack, PendingCalibration, RowSource, ServerPipeline,
     background_of,
 };
+use quarry_trackers::{TrackerConfig, TrackerError};
 
 use super::calibration::{rough_poses, scanner_infos};
 use super::metrics::EvalFrame;
@@ -213,7 +215,6 @@ where
     }
     Ok(run)
 }
-
 
 /// [`run_room`] with the default parts: quarry-cloud's chi-square background per scanner, the
 /// fusion over quarry-net's `FrameAssembler` (`AssemblerFusion`), and the tracker of `cfg.preset`.

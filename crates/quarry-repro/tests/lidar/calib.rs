@@ -5,12 +5,12 @@
 use proptest::prelude::*;
 use quarry_cloud::CloudError;
 use quarry_core::{BackgroundModel, Pose2, TimeUs};
-use quarry_sim::lidar_room::{
-    CALIB_MAX_ROT_DEG, CALIB_MAX_SHIFT_M, RoomEvent, Runner, Scenario, SpeedBand,
-};
 use quarry_repro::ReproError;
 use quarry_repro::lidar::{
     Paper003Metrics, calibrate_scenario, evaluate_paper003, run_room_default, scanner_infos,
+};
+use quarry_sim::lidar_room::{
+    CALIB_MAX_ROT_DEG, CALIB_MAX_SHIFT_M, RoomEvent, Runner, Scenario, SpeedBand,
 };
 use quarry_trackers::lidar_people::{
     Calibration, CalibrationReport, LidarPeopleConfig, Preset, background_of,
@@ -252,7 +252,7 @@ proptest! {
             ));
         }
         let refs: Vec<&[Option<f64>]> = bgs.iter().map(Vec::as_slice).collect();
-        let rep = calibrate_backgrounds(&scanner_infos(&sc), &rough, &refs, &icp(), TimeUs(0)).unwrap();
+        let rep = calibrate_backgrounds(&scanner_infos(sc), &rough, &refs, &icp(), TimeUs(0)).unwrap();
         prop_assert!(rep.max_pos_error_m <= 0.02, "{:?}", rep);
         prop_assert!(rep.max_rot_error_deg <= 0.3, "{:?}", rep);
         // the reference stays where it was configured
@@ -346,8 +346,13 @@ fn convergence_basin_sweep() {
                             t.y + shift * dir.sin(),
                             t.theta + sign * rot.to_radians(),
                         );
-                        match calibrate_backgrounds(&scanner_infos(&sc), &rough, &refs, &icp(), TimeUs(0))
-                        {
+                        match calibrate_backgrounds(
+                            &scanner_infos(sc),
+                            &rough,
+                            &refs,
+                            &icp(),
+                            TimeUs(0),
+                        ) {
                             Ok(r) if r.max_pos_error_m <= 0.02 && r.max_rot_error_deg <= 0.3 => {
                                 ok += 1;
                                 extra += r.scanners.iter().map(|s| s.extra_starts).sum::<usize>();

@@ -6,8 +6,8 @@ use quarry_net::{
     LocalBus, NetError, Received, SensorSpec, SimSource, Subscription, Transport, WallNodeOptions,
     WallServerOptions, keys, run_sim_node, run_sim_server, run_wall_node, run_wall_server,
 };
-use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
 use quarry_repro::lidar::run_room_default;
+use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
 use quarry_trackers::lidar_people::LidarPeopleConfig;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;

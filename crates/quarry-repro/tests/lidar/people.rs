@@ -2,8 +2,8 @@
 //! Table 2 protocol runs through `quarry lidar` and is reported in docs/lidar-people.md).
 
 use quarry_core::TimeUs;
-use quarry_sim::lidar_room::{Scenario, SpeedBand};
 use quarry_repro::lidar::{Paper003Metrics, evaluate_paper003, run_room_default};
+use quarry_sim::lidar_room::{Scenario, SpeedBand};
 use quarry_trackers::TrackerConfig;
 use quarry_trackers::lidar_people::{FusionTime, LidarPeopleConfig, Preset, gate_of};
 
@@ -279,10 +279,7 @@ fn run_window(
     sc: Scenario,
     preset: Preset,
     frames: usize,
-) -> (
-    Vec<quarry_repro::lidar::EvalFrame>,
-    Paper003Metrics,
-) {
+) -> (Vec<quarry_repro::lidar::EvalFrame>, Paper003Metrics) {
     let cfg = LidarPeopleConfig::preset(preset);
     let run = run_room_default(sc, &cfg, &mut |_| {}).unwrap();
     let w = run.eval_window(TimeUs(7_000_000), frames);

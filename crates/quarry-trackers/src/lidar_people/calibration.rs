@@ -18,8 +18,8 @@
 //! in the simulator, quarry-repro's seeded draw around the true poses. The reference scanner's
 //! rough pose is taken as exact.
 
-use super::config::{Calibration, LidarPeopleConfig};
 use super::ClientPipeline;
+use super::config::{Calibration, LidarPeopleConfig};
 use crate::TrackerError;
 use quarry_cloud::CloudError;
 use quarry_cloud::calib::{
@@ -291,7 +291,11 @@ impl PendingCalibration {
         if rough.len() != scanners.len() {
             return Err(TrackerError::config(
                 "lidar_people",
-                format!("{} rough poses for {} scanners", rough.len(), scanners.len()),
+                format!(
+                    "{} rough poses for {} scanners",
+                    rough.len(),
+                    scanners.len()
+                ),
             ));
         }
         let period = scanners

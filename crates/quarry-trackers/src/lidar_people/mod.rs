@@ -47,14 +47,13 @@ mod recorded;
 mod tracker;
 
 pub use calibration::{
-    CalibrationReport, PendingCalibration, ScannerCalibration, ScannerInfo,
-    calibrate_backgrounds, pose_error, reference_index,
+    CalibrationReport, PendingCalibration, ScannerCalibration, ScannerInfo, calibrate_backgrounds,
+    pose_error, reference_index,
 };
 pub use config::{Calibration, FusionTime, LidarPeopleConfig, Preset};
 pub use pipeline::{ClientPipeline, DynamicScan, Fusion, RowSource, ServerPipeline};
 pub use recorded::{RecordedFrame, RecordedRun, run_recorded};
 pub use tracker::{
-    ContourDetector, ContourFit, DefaultLidarTracker, FusedPoints, KfGnnTracker, LidarPeopleTracker,
-    LidarTrack, Table1Tracker, background_of, gate_of, icp_of, meanshift_of,
+    ContourDetector, ContourFit, DefaultLidarTracker, FusedPoints, KfGnnTracker,
+    LidarPeopleTracker, LidarTrack, Table1Tracker, background_of, gate_of, icp_of, meanshift_of,
 };
-

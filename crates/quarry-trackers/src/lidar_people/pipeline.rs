@@ -162,4 +162,3 @@ impl<C: Clusterer, R: Registration2> RowSource for super::LidarPeopleTracker<C, 
         self.last_rows()
     }
 }
-

@@ -4,15 +4,15 @@
 
 use super::config::{LidarPeopleConfig, Preset};
 use crate::{TrackerConfig, TrackerError};
-use quarry_assoc::PositionVelocityGate;
-use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermConfig, SigmaMode};
-use quarry_cloud::cluster::MeanShift;
-use quarry_cloud::icp::{Correspondence, Icp2d, Trim};
-use quarry_core::ScanGeometry;
 use nalgebra::{DMatrix, Matrix4, Vector2, Vector4};
+use quarry_assoc::PositionVelocityGate;
 use quarry_assoc::PvState;
 use quarry_assoc::lifecycle::{MOfN, MOfNRecord, ScanObservation, TrackLifecycle, TrackState};
+use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermConfig, SigmaMode};
+use quarry_cloud::cluster::MeanShift;
 use quarry_cloud::contour::EllipseModel;
+use quarry_cloud::icp::{Correspondence, Icp2d, Trim};
+use quarry_core::ScanGeometry;
 use quarry_core::{
     Clusterer, Clustering, CoreError, Gate, Gaussian, MultiTargetTracker, Point2, Pose2,
     Registration2, Stamp, StateEstimate, StateLayout, TimeUs, TrackFlags, TrackId, TrackReport,
