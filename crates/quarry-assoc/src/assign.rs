@@ -340,69 +340,22 @@ pub fn murty_k_best(cost: &DMatrix<f64>, k: usize) -> Result<Vec<Assignment>, As
 mod tests {
     use super::*;
     use proptest::prelude::*;
+    use quarry_testkit::brute::assignments;
 
-    /// All assignments of `min(n, m)` pairs by brute force, as (cost, row_to_col).
-    fn brute(cost: &DMatrix<f64>) -> Vec<(f64, Vec<Option<usize>>)> {
-        let (n, m) = cost.shape();
-        let mut out = Vec::new();
-        let mut cur = vec![None; n];
-        let mut used = vec![false; m];
-        fn rec(
-            i: usize,
-            cost: &DMatrix<f64>,
-            cur: &mut Vec<Option<usize>>,
-            used: &mut Vec<bool>,
-            out: &mut Vec<(f64, Vec<Option<usize>>)>,
-        ) {
-            let (n, m) = cost.shape();
-            if i == n {
-                let k = cur.iter().filter(|c| c.is_some()).count();
-                if k == n.min(m) {
-                    let c: f64 = cur
-                        .iter()
-                        .enumerate()
-                        .filter_map(|(r, c)| c.map(|j| cost[(r, j)]))
-                        .sum();
-                    if c.is_finite() {
-                        out.push((c, cur.clone()));
-                    }
-                }
-                return;
-            }
-            if n > m {
-                cur[i] = None;
-                rec(i + 1, cost, cur, used, out);
-            }
-            for j in 0..m {
-                if !used[j] {
-                    used[j] = true;
-                    cur[i] = Some(j);
-                    rec(i + 1, cost, cur, used, out);
-                    used[j] = false;
-                    cur[i] = None;
-                }
-            }
-        }
-        rec(0, cost, &mut cur, &mut used, &mut out);
-        out.sort_by(|a, b| a.0.total_cmp(&b.0));
-        out
-    }
-
+    /// Cost matrices up to 4 x 4, one pair in five forbidden.
     fn mat() -> impl Strategy<Value = DMatrix<f64>> {
-        (1usize..5, 1usize..5).prop_flat_map(|(n, m)| {
-            proptest::collection::vec(
-                prop_oneof![4 => 0.0f64..10.0, 1 => Just(f64::INFINITY)],
-                n * m,
-            )
-            .prop_map(move |v| DMatrix::from_row_slice(n, m, &v))
-        })
+        quarry_testkit::strategies::matrix(
+            1..5,
+            1..5,
+            prop_oneof![4 => 0.0f64..10.0, 1 => Just(f64::INFINITY)],
+        )
     }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(200))]
         #[test]
         fn hungarian_equals_brute_force(c in mat()) {
-            let all = brute(&c);
+            let all = assignments(&c);
             match hungarian(&c) {
                 Ok(a) => {
                     prop_assert!(!all.is_empty());
@@ -423,7 +376,7 @@ mod tests {
 
         #[test]
         fn murty_sorted_distinct_and_complete(c in mat(), k in 1usize..30) {
-            let all = brute(&c);
+            let all = assignments(&c);
             let best = murty_k_best(&c, k).unwrap();
             prop_assert_eq!(best.len(), k.min(all.len()));
             for w in best.windows(2) {
@@ -442,7 +395,7 @@ mod tests {
             let n = c.nrows();
             let a = hungarian_with_miss(&c, &miss[..n]).unwrap();
             let aug = augment_with_miss(&c, &miss[..n]).unwrap();
-            let all = brute(&aug);
+            let all = assignments(&aug);
             prop_assert!((a.cost - all[0].0).abs() < 1e-9);
         }
     }

@@ -58,6 +58,12 @@
 //!   detection), `log_normaliser = -inf` and those tracks get β_i0 = 1 (no update) — never NaN.
 //! - A detection gated by no track is clutter; a track with no gated detection has β_i0 = 1.
 //! - `P_D = 0` (per track via [`quarry_core::TrackPrior::detection`]) gives β_i0 = 1.
+//!
+//! ## Features
+//!
+//! None: the crate has no optional parts, and it uses quarry-core without quarry-core's default
+//! features (`serde`, `rng`), so `--no-default-features` and the default build are the same lean
+//! build. Enable `quarry-core/serde` to (de)serialise the core types it takes and returns.
 
 pub mod assign;
 mod associators;

@@ -5,47 +5,10 @@ use nalgebra::DMatrix;
 use proptest::prelude::*;
 use quarry_assoc::{Gnn, Jipda, Jpda, Method, PaperLikelihood, Pda, Solver};
 use quarry_core::{Associator, LikelihoodMatrix, TrackPrior};
+use quarry_testkit::brute;
+use quarry_testkit::strategies::gated_log_likelihoods;
 
 const NI: f64 = f64::NEG_INFINITY;
-
-/// Brute force over every feasible joint event: returns (β̃, c) for scores `L` (n × (m+1)).
-fn brute(l: &DMatrix<f64>) -> (DMatrix<f64>, f64) {
-    let (n, m1) = l.shape();
-    let mut beta = DMatrix::zeros(n, m1);
-    let mut c = 0.0;
-    let mut a = vec![0usize; n];
-    fn rec(
-        i: usize,
-        l: &DMatrix<f64>,
-        a: &mut Vec<usize>,
-        used: &mut Vec<bool>,
-        beta: &mut DMatrix<f64>,
-        c: &mut f64,
-    ) {
-        let (n, m1) = l.shape();
-        if i == n {
-            let w: f64 = (0..n).map(|k| l[(k, a[k])]).product();
-            *c += w;
-            for k in 0..n {
-                beta[(k, a[k])] += w;
-            }
-            return;
-        }
-        a[i] = 0;
-        rec(i + 1, l, a, used, beta, c);
-        for j in 1..m1 {
-            if !used[j] && l[(i, j)] > 0.0 {
-                used[j] = true;
-                a[i] = j;
-                rec(i + 1, l, a, used, beta, c);
-                used[j] = false;
-            }
-        }
-    }
-    let mut used = vec![false; m1];
-    rec(0, l, &mut a, &mut used, &mut beta, &mut c);
-    (beta / c, c)
-}
 
 /// The JPDA score matrix for given log-likelihoods.
 fn scores(lik: &DMatrix<f64>, pd: &[f64], pg: f64, kappa: f64, psi: &[f64]) -> DMatrix<f64> {
@@ -62,12 +25,12 @@ fn scores(lik: &DMatrix<f64>, pd: &[f64], pg: f64, kappa: f64, psi: &[f64]) -> D
 prop_compose! {
     /// Random small problem: n ≤ 5 tracks, m ≤ 6 detections, ~60 % of pairs gated.
     fn problem()(n in 1usize..=5, m in 0usize..=6)
-        (vals in proptest::collection::vec(prop_oneof![3 => -12.0f64..0.0, 2 => Just(NI)], n * m),
+        (lik in gated_log_likelihoods(n, m),
          pd in proptest::collection::vec(prop_oneof![4 => 0.3f64..1.0, 1 => Just(1.0), 1 => Just(0.0)], n),
          psi in proptest::collection::vec(0.0f64..=1.0, n),
-         n in Just(n), m in Just(m), pg in 0.5f64..=1.0, kappa in 1e-4f64..1.0)
+         pg in 0.5f64..=1.0, kappa in 1e-4f64..1.0)
         -> (DMatrix<f64>, Vec<f64>, Vec<f64>, f64, f64) {
-        (DMatrix::from_row_slice(n, m, &vals), pd, psi, pg, kappa)
+        (lik, pd, psi, pg, kappa)
     }
 }
 
@@ -95,7 +58,7 @@ proptest! {
     fn jpda_exact_equals_brute_force((lik, pd, _psi, pg, kappa) in problem()) {
         let n = lik.nrows();
         let l = scores(&lik, &pd, pg, kappa, &vec![1.0; n]);
-        let (bb, c) = brute(&l);
+        let (bb, c) = brute::jpda_marginals(&l);
         let jpda = Jpda::new(0.5, pg, kappa).unwrap().with_solver(exact_solver());
         let a = jpda.associate(&LikelihoodMatrix::new(lik.clone()).unwrap(), &priors(&pd, None)).unwrap();
         if c > 0.0 {
@@ -132,7 +95,7 @@ proptest! {
     fn jipda_exact_equals_brute_force((lik, pd, psi, pg, kappa) in problem()) {
         let n = lik.nrows();
         let l = scores(&lik, &pd, pg, kappa, &psi);
-        let (bt, c) = brute(&l);
+        let (bt, c) = brute::jpda_marginals(&l);
         prop_assume!(c > 0.0);
         let jipda = Jipda::new(0.5, pg, kappa).unwrap().with_solver(exact_solver());
         let a = jipda.associate(&LikelihoodMatrix::new(lik.clone()).unwrap(), &priors(&pd, Some(&psi))).unwrap();
@@ -188,19 +151,7 @@ proptest! {
         let n = lik.nrows();
         let l = scores(&lik, &pd, pg, kappa, &vec![1.0; n]);
         // Best event by brute force.
-        let mut best = NI;
-        let (nn, m1) = l.shape();
-        let mut stack = vec![(0usize, vec![false; m1], 0.0f64)];
-        while let Some((i, used, lw)) = stack.pop() {
-            if i == nn { best = best.max(lw); continue; }
-            if l[(i, 0)] > 0.0 { stack.push((i + 1, used.clone(), lw + l[(i, 0)].ln())); }
-            for j in 1..m1 {
-                if !used[j] && l[(i, j)] > 0.0 {
-                    let mut u = used.clone(); u[j] = true;
-                    stack.push((i + 1, u, lw + l[(i, j)].ln()));
-                }
-            }
-        }
+        let best = brute::best_event_log_weight(&l);
         let g = Gnn::new(0.5, pg, kappa).unwrap();
         let a = g.associate(&LikelihoodMatrix::new(lik).unwrap(), &priors(&pd, None)).unwrap();
         if best.is_finite() {

@@ -271,6 +271,7 @@ impl KdIndex {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+    use quarry_testkit::brute;
 
     #[test]
     fn many_identical_points_do_not_panic() {
@@ -319,12 +320,9 @@ mod tests {
             let mut idx = KdIndex::new(&pts).unwrap();
             for &i in &remove { idx.remove(i % pts.len()); }
             let got = idx.within(&q, r);
-            let want: Vec<usize> = (0..pts.len())
-                .filter(|&i| !idx.is_removed(i) && (pts[i] - q).norm_squared() <= r * r)
-                .collect();
+            let want = brute::within(&pts, &q, r, |i| !idx.is_removed(i));
             prop_assert_eq!(got, want);
-            let bf = (0..pts.len()).filter(|&i| !idx.is_removed(i))
-                .map(|i| (pts[i] - q).norm()).fold(f64::INFINITY, f64::min);
+            let bf = brute::nearest_distance(&pts, &q, |i| !idx.is_removed(i));
             match idx.nearest(&q) {
                 Some((i, d)) => { prop_assert!((d - bf).abs() < 1e-12); prop_assert!(((pts[i] - q).norm() - bf).abs() < 1e-12); }
                 None => prop_assert!(bf.is_infinite()),

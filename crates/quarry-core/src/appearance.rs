@@ -2,7 +2,6 @@
 
 use crate::{BBox, CoreError, Pose2};
 use nalgebra::Vector3;
-use serde::{Deserialize, Serialize};
 
 /// A region appearance model: describe a region, score it against the template, learn.
 pub trait AppearanceModel {
@@ -25,7 +24,8 @@ pub trait AppearanceModel {
 }
 
 /// Pinhole camera intrinsics.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PinholeIntrinsics {
     /// Focal length in pixels, x.
     pub fx: f64,
@@ -54,7 +54,8 @@ impl PinholeIntrinsics {
 }
 
 /// The camera's mount on the robot (robot <- camera): translation and downward tilt (radians).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CameraMount {
     /// Camera centre in the robot frame (x forward, y left, z up), metres.
     pub t: Vector3<f64>,
@@ -63,7 +64,8 @@ pub struct CameraMount {
 }
 
 /// The robot's own motion over one frame interval.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum EgoMotion {
     /// The robot did not move (or no odometry is available).
     #[default]

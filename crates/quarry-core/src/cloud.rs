@@ -2,10 +2,10 @@
 
 use crate::{CoreError, Point2, Pose2, SensorId, TimeUs};
 use nalgebra::Matrix2;
-use serde::{Deserialize, Serialize};
 
 /// The beam geometry of a 2-D scanner (the fields of a ROS `LaserScan` header).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ScanGeometry {
     /// Number of beams per scan.
     pub n_beams: u32,
@@ -73,7 +73,8 @@ impl ScanGeometry {
 }
 
 /// One scan of a 2-D scanner, ranges in millimetres (0 = no return).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PolarScan {
     /// Which scanner.
     pub sensor: SensorId,
@@ -127,7 +128,8 @@ impl PolarScan {
 }
 
 /// The class of one beam after background subtraction.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum BeamLabel {
     /// Consistent with the static background.
     Static,
@@ -152,7 +154,8 @@ pub trait BackgroundModel {
 }
 
 /// A 2-D detection (a person, a cluster centre, ...).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Detection2 {
     /// Position, metres.
     pub pos: Point2,
@@ -167,7 +170,8 @@ pub struct Detection2 {
 }
 
 /// The result of clustering a point set.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Clustering {
     /// Cluster of each input point (`None` = noise / unassigned).
     pub labels: Vec<Option<u32>>,
@@ -184,7 +188,8 @@ pub trait Clusterer {
 }
 
 /// The result of a 2-D rigid registration.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RegResult {
     /// The pose mapping the model frame onto the data frame.
     pub pose: Pose2,

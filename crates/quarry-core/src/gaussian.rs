@@ -2,7 +2,6 @@
 
 use crate::CoreError;
 use nalgebra::{Cholesky, SMatrix, SVector};
-use serde::{Deserialize, Serialize};
 
 /// Relative tolerance of the symmetry check in [`Gaussian::try_new`].
 pub const SYMMETRY_TOL: f64 = 1e-9;
@@ -20,7 +19,8 @@ pub const SYMMETRY_TOL: f64 = 1e-9;
 /// assert!((g.mahalanobis2(&Vector2::new(3.0, 2.0)).unwrap() - 1.0).abs() < 1e-12);
 /// assert!(Gaussian::try_new(Vector2::zeros(), Matrix2::new(1.0, 2.0, 2.0, 1.0)).is_err());
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Gaussian<const D: usize> {
     /// The mean.
     pub mean: SVector<f64, D>,

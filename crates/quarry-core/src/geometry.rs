@@ -1,7 +1,6 @@
 //! Planar and spatial rigid poses, angle wrapping, and image boxes.
 
 use nalgebra::{Isometry2, Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
-use serde::{Deserialize, Serialize};
 
 /// A 2-D point in metres (world, sensor or robot frame as the context says).
 pub type Point2 = nalgebra::Point2<f64>;
@@ -34,7 +33,8 @@ pub fn wrap_angle(a: f64) -> f64 {
 ///
 /// `apply` maps points from the pose's own frame into the parent frame; `compose` chains poses
 /// (`a.compose(&b)` is "b expressed in a's frame, then a").
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Pose2 {
     /// x in metres.
     pub x: f64,
@@ -143,7 +143,8 @@ impl From<Pose2> for Isometry2<f64> {
 }
 
 /// A rigid pose in space, SE(3): a translation and a unit-quaternion rotation.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Pose3 {
     /// Translation in metres.
     pub translation: Vector3<f64>,
@@ -220,7 +221,8 @@ impl From<Pose2> for Pose3 {
 }
 
 /// An axis-aligned image box in pixels, centre form.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BBox {
     /// Centre x (column), pixels.
     pub cx: f64,

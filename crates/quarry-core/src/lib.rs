@@ -26,6 +26,17 @@
 //! assert_eq!(r.stamp.frame.0, 3);
 //! # Ok::<(), quarry_core::CoreError>(())
 //! ```
+//!
+//! ## Features
+//!
+//! - `serde` (default): `serde::Serialize` / `serde::Deserialize` on the vocabulary types, with
+//!   nalgebra's `serde-serialize` for the vectors and matrices they hold.
+//! - `rng` (default): the `rng` module, a seeded xoshiro256++ generator (pulls in
+//!   `rand_xoshiro`). Without it, pass any `rand_core::RngCore` where quarry takes a generator.
+//! - `image`: `From` conversions between [`Plane`] and `image` buffers.
+//!
+//! `default-features = false` leaves the types, traits and checks only (nalgebra, thiserror,
+//! rand_core).
 
 mod appearance;
 mod assoc;
@@ -37,6 +48,7 @@ mod models;
 mod particles;
 mod plane;
 mod report;
+#[cfg(feature = "rng")]
 pub mod rng;
 pub mod stats;
 mod time;

@@ -2,10 +2,10 @@
 
 use crate::{BBox, Stamp, TrackId};
 use nalgebra::{DMatrix, DVector};
-use serde::{Deserialize, Serialize};
 
 /// How the numbers of a [`StateEstimate`] are laid out (position always first).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum StateLayout {
     /// `[x, y]`.
     Xy,
@@ -32,7 +32,8 @@ impl StateLayout {
 }
 
 /// A state mean (and optionally its covariance) in the tracker's output frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct StateEstimate {
     /// Component order.
     pub layout: StateLayout,
@@ -50,7 +51,8 @@ impl StateEstimate {
 }
 
 /// A track's life-cycle status.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TrackStatus {
     /// Born, not yet confirmed.
     Tentative,
@@ -63,7 +65,8 @@ pub enum TrackStatus {
 }
 
 /// A set of event flags on a track report.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TrackFlags(pub u32);
 
 impl TrackFlags {
@@ -100,7 +103,8 @@ impl std::ops::BitOr for TrackFlags {
 }
 
 /// What a tracker reports for one track at one step.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TrackReport {
     /// The step this report belongs to.
     pub stamp: Stamp,

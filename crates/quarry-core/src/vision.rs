@@ -1,10 +1,10 @@
 //! Vision vocabulary: segmentation and local features.
 
 use crate::{CoreError, Plane};
-use serde::{Deserialize, Serialize};
 
 /// One regional minimum (a watershed seed).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct MinimumInfo {
     /// The label of the minimum (and of its region), starting at 1.
     pub id: u32,
@@ -41,7 +41,8 @@ pub trait Segmenter {
 }
 
 /// A scale-space keypoint, OpenCV-compatible where it matters.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Keypoint {
     /// Column in input pixels (centre of the top-left pixel at 0).
     pub x: f32,

@@ -31,6 +31,14 @@
 //! assert!(s.hota.hota_mean() > 0.8);
 //! # Ok::<(), quarry_eval::EvalError>(())
 //! ```
+//!
+//! ## Features
+//!
+//! - `serde` (default): `serde::Serialize` on the MOT summaries ([`ClearMot`], [`Identity`],
+//!   [`Hota`], [`MotSummary`]), for writing scores as JSON or CSV.
+//!
+//! quarry-core is used without its default features; enable `quarry-core/serde` if you also
+//! serialise core types.
 
 mod error;
 pub mod lsap;

@@ -232,35 +232,7 @@ pub(crate) fn assign_with_forbidden(
 mod tests {
     use super::*;
     use proptest::prelude::*;
-
-    fn brute_force(cost: &[f64], nr: usize, nc: usize) -> f64 {
-        // minimum over all injective maps from the smaller side into the larger one
-        fn rec(cost: &[f64], nr: usize, nc: usize, row: usize, used: &mut Vec<bool>) -> f64 {
-            if row == nr {
-                return 0.0;
-            }
-            let mut best = f64::INFINITY;
-            for j in 0..nc {
-                if !used[j] {
-                    used[j] = true;
-                    best = best.min(cost[row * nc + j] + rec(cost, nr, nc, row + 1, used));
-                    used[j] = false;
-                }
-            }
-            best
-        }
-        if nr <= nc {
-            rec(cost, nr, nc, 0, &mut vec![false; nc])
-        } else {
-            let mut t = vec![0.0; cost.len()];
-            for i in 0..nr {
-                for j in 0..nc {
-                    t[j * nr + i] = cost[i * nc + j];
-                }
-            }
-            rec(&t, nc, nr, 0, &mut vec![false; nr])
-        }
-    }
+    use quarry_testkit::brute;
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
@@ -275,7 +247,7 @@ mod tests {
             prop_assert_eq!(rows.len(), pairs.len());
             prop_assert_eq!(cols.len(), pairs.len());
             let total: f64 = pairs.iter().map(|&(i, j)| cost[i * nc + j]).sum();
-            prop_assert!((total - brute_force(&cost, nr, nc)).abs() < 1e-9);
+            prop_assert!((total - brute::lsap_cost(&cost, nr, nc)).abs() < 1e-9);
         }
     }
 

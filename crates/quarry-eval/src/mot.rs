@@ -37,7 +37,6 @@
 use std::collections::{HashMap, HashSet};
 
 use quarry_core::CoreError;
-use serde::Serialize;
 
 use crate::EvalError;
 use crate::lsap::{assign_with_forbidden, linear_sum_assignment};
@@ -205,7 +204,8 @@ fn ratio(a: f64, b: f64) -> Option<f64> {
 /// CLEAR MOT counts and ratios (Bernardin & Stiefelhagen 2008), py-motmetrics conventions.
 ///
 /// Field names follow py-motmetrics' metric names.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct ClearMot {
     /// Frames in the sequence.
     pub num_frames: usize,
@@ -427,7 +427,8 @@ fn clear_mot_prepared(ev: &MotEvaluation) -> Result<ClearMot, EvalError> {
 }
 
 /// The identity measures (Ristani et al. 2016).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Identity {
     /// Frames in which an object is matched to the trajectory globally assigned to it.
     pub idtp: usize,
@@ -506,7 +507,8 @@ pub fn hota_alphas() -> [f64; 19] {
 
 /// HOTA and its sub-metrics (Luiten et al. 2021), TrackEval conventions. Each array holds one
 /// value per alpha of [`hota_alphas`]; the scalar accessors average over alpha.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Hota {
     /// Higher-order tracking accuracy `sqrt(DetA AssA)` per alpha.
     pub hota: [f64; 19],
@@ -749,7 +751,8 @@ fn finish_hota(
 }
 
 /// CLEAR MOT, identity and HOTA of one sequence.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct MotSummary {
     /// CLEAR MOT (py-motmetrics conventions).
     pub clear: ClearMot,

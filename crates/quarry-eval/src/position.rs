@@ -37,7 +37,7 @@ pub fn rmse(errors: &[f64]) -> Result<f64, EvalError> {
 
 /// Correlation time of an error series (spec 000 §4.3 E5): the smallest lag τ ≥ 1 at which the
 /// normalised autocorrelation ρ(τ) = Σ_k (e_k − ē)(e_{k+τ} − ē) / Σ_k (e_k − ē)² drops below
-/// 1/e, times the sample period `dt` [s]. `Ok(None)` when it never does within the series, or
+/// 1/e, times the sample period `dt` (s). `Ok(None)` when it never does within the series, or
 /// when the series is constant (ρ undefined).
 ///
 /// ```

@@ -522,26 +522,7 @@ mod tests {
     use nalgebra::{DMatrix, DVector, Matrix2, Matrix4, Vector2, Vector4};
     use proptest::prelude::*;
     use quarry_core::Pose2;
-
-    /// A random SPD matrix from a random orthogonal basis and log-uniform eigenvalues.
-    fn spd4(angles: &[f64; 6], log_eigs: &[f64; 4]) -> Matrix4<f64> {
-        let mut q = Matrix4::<f64>::identity();
-        let pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
-        for (k, &(i, j)) in pairs.iter().enumerate() {
-            let (s, c) = angles[k].sin_cos();
-            let mut g = Matrix4::<f64>::identity();
-            g[(i, i)] = c;
-            g[(j, j)] = c;
-            g[(i, j)] = -s;
-            g[(j, i)] = s;
-            q = g * q;
-        }
-        let d = Matrix4::from_diagonal(&Vector4::from_iterator(
-            log_eigs.iter().map(|v| 10f64.powf(*v)),
-        ));
-        let p = q * d * q.transpose();
-        (p + p.transpose()) * 0.5
-    }
+    use quarry_testkit::strategies::{finite_vector, spd_from_rotations};
 
     fn sym_rel(p: &Matrix4<f64>) -> f64 {
         (p - p.transpose()).amax() / p.amax()
@@ -629,7 +610,7 @@ mod tests {
     fn prediction_reuse_matches_update() {
         let prior = Gaussian::try_new(
             Vector4::new(10.0, 5.0, 1.0, -1.0),
-            spd4(&[0.3, 0.1, 0.5, 0.2, 0.9, 1.1], &[0.0, -1.0, 0.5, -0.5]),
+            spd_from_rotations(&[0.3, 0.1, 0.5, 0.2, 0.9, 1.1], &[0.0, -1.0, 0.5, -0.5]),
         )
         .unwrap();
         let rb = RangeBearingCv::new(Pose2::new(1.0, -1.0, 0.4), 0.5, 0.01).unwrap();
@@ -655,7 +636,7 @@ mod tests {
             log_eigs in proptest::array::uniform4(-4.0..4.0f64),
             steps in proptest::collection::vec((0.01..0.5f64, -20.0..20.0f64, -20.0..20.0f64, any::<bool>(), any::<bool>()), 1..40),
         ) {
-            let p0 = spd4(&angles, &log_eigs);
+            let p0 = spd_from_rotations(&angles, &log_eigs);
             let mut g = Gaussian::try_new(Vector4::new(8.0, -6.0, 1.0, 0.5), p0).unwrap();
             let cv = ConstantVelocity2::dwna(0.4).unwrap();
             let pos = Position2::isotropic(0.3).unwrap();
@@ -688,14 +669,14 @@ mod tests {
         #[test]
         fn kf_equals_batch_least_squares(
             zs in proptest::collection::vec((-5.0..5.0f64, -5.0..5.0f64, 0.05..1.0f64), 1..12),
-            m0 in proptest::array::uniform4(-2.0..2.0f64),
+            m0 in finite_vector::<4>(-2.0..2.0f64),
             q in 0.01..2.0f64,
             sigma in 0.1..2.0f64,
         ) {
             let cv = ConstantVelocity2::cwna(q).unwrap();
             let pos = Position2::isotropic(sigma).unwrap();
             let p0 = Matrix4::from_diagonal(&Vector4::new(2.0, 3.0, 0.5, 0.7));
-            let mut g = Gaussian::try_new(Vector4::from(m0), p0).unwrap();
+            let mut g = Gaussian::try_new(m0, p0).unwrap();
             for &(zx, zy, dt) in &zs {
                 g = predict(&g, &cv, &(), dt).unwrap();
                 g = update(&g, &pos, &Vector2::new(zx, zy), UpdateForm::Joseph).unwrap().0;
@@ -713,7 +694,7 @@ mod tests {
             let p0_inv = DMatrix::from_column_slice(4, 4, p0.try_inverse().unwrap().as_slice());
             let mut a = DMatrix::<f64>::zeros(4, dim);
             a.view_mut((0, 0), (4, 4)).fill_with_identity();
-            add(&mut info, &mut eta, &a, &p0_inv, &DVector::from_column_slice(&m0));
+            add(&mut info, &mut eta, &a, &p0_inv, &DVector::from_column_slice(m0.as_slice()));
             let r_inv = DMatrix::<f64>::identity(2, 2) / (sigma * sigma);
             for (k, &(zx, zy, dt)) in zs.iter().enumerate() {
                 let f = cv.jacobian(&Vector4::zeros(), &(), dt);
@@ -743,7 +724,7 @@ mod tests {
         /// The three update forms agree on well-conditioned problems.
         #[test]
         fn update_forms_agree(angles in proptest::array::uniform6(-3.2..3.2f64), log_eigs in proptest::array::uniform4(-1.0..1.0f64), zx in -3.0..3.0f64) {
-            let g = Gaussian::try_new(Vector4::zeros(), spd4(&angles, &log_eigs)).unwrap();
+            let g = Gaussian::try_new(Vector4::zeros(), spd_from_rotations(&angles, &log_eigs)).unwrap();
             let pos = Position2::isotropic(0.7).unwrap();
             let z = Vector2::new(zx, 1.0);
             let (a, _) = update(&g, &pos, &z, UpdateForm::Joseph).unwrap();

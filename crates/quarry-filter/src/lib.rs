@@ -38,6 +38,13 @@
 //!   copy, O(log M) write) and [`store::VecStore`].
 //! - [`rbpf`]: the FastSLAM 1.0 per-particle landmark kernels ([`rbpf::fastslam1`]).
 //!
+//! ## Features
+//!
+//! None: the crate has no optional parts, and it uses quarry-core without quarry-core's default
+//! features (`serde`, `rng`), so `--no-default-features` and the default build are the same lean
+//! build. Every sampler takes any `rand_core::RngCore`; enable `quarry-core/rng` for quarry's
+//! seeded generator and `quarry-core/serde` to (de)serialise the [`Gaussian`]s it returns.
+//!
 //! [`Gaussian`]: quarry_core::Gaussian
 //! [`MotionModel`]: quarry_core::MotionModel
 //! [`MeasurementModel`]: quarry_core::MeasurementModel

@@ -9,11 +9,9 @@ use quarry_vision::{
 };
 use std::collections::VecDeque;
 
+/// Grey images with sides in `2..=max_side` and pixel values in `0..levels`.
 fn image(max_side: u32, levels: u8) -> impl Strategy<Value = Plane<u8>> {
-    (2..=max_side, 2..=max_side).prop_flat_map(move |(w, h)| {
-        proptest::collection::vec(0..levels, (w * h) as usize)
-            .prop_map(move |d| Plane::from_vec(w, h, d).unwrap())
-    })
+    quarry_testkit::strategies::plane(2..=max_side, 0..levels)
 }
 
 /// Brute-force regional-minimum mask: flood each pixel's plateau and look for a lower neighbour.
