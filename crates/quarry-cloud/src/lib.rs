@@ -14,7 +14,6 @@
 //! | [`contour`] | [`contour::EllipseModel`], the human contour model of §2.6 |
 //! | [`calib`] | scanner extrinsics from static backgrounds, or from configured poses |
 //! | [`net`] | sans-IO [`net::wire`] format, [`net::ClockSync`], [`net::FrameAssembler`] |
-//! | [`csv_scans`] | the recorded-scan CSV reader (`stamp_s,r0..r{N-1}`) |
 //!
 //! Every public function that takes data returns `Result<_, CloudError>` (the quarry-core trait
 //! implementations return `CoreError`); nothing panics on bad input.
@@ -52,7 +51,6 @@ pub mod background;
 pub mod calib;
 pub mod cluster;
 pub mod contour;
-pub mod csv_scans;
 pub mod error;
 pub mod icp;
 pub mod kd;

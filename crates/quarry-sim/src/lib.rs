@@ -14,7 +14,6 @@
 
 mod error;
 pub mod lidar_room;
-pub mod mrclam;
 pub mod rgbd;
 pub mod slamot;
 

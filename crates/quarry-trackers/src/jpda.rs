@@ -160,12 +160,12 @@ impl JpdaTracker {
         let (m, n, k) = cfg.m_of_n;
         let m_of_n = MOfN::new(m, n, k)?;
         if !(cfg.birth_vel_sigma.is_finite() && cfg.birth_vel_sigma > 0.0) {
-            return Err(TrackerError::Config(
-                "birth_vel_sigma must be positive".into(),
+            return Err(TrackerError::config("jpda", 
+                "birth_vel_sigma must be positive",
             ));
         }
         if !(0.0..=1.0).contains(&cfg.survival) {
-            return Err(TrackerError::Config("survival must be in [0, 1]".into()));
+            return Err(TrackerError::config("jpda", "survival must be in [0, 1]"));
         }
         // Validates pd, prob_gate and clutter_density.
         Jpda::new(cfg.pd, cfg.prob_gate, cfg.clutter_density)?;

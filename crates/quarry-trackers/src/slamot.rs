@@ -384,8 +384,8 @@ impl From<&quarry_sim::slamot::SlamotFrame> for SlamotObservation {
     }
 }
 
-impl From<&quarry_sim::mrclam::MrclamFrame> for SlamotObservation {
-    fn from(f: &quarry_sim::mrclam::MrclamFrame) -> Self {
+impl From<&quarry_data::mrclam::MrclamFrame> for SlamotObservation {
+    fn from(f: &quarry_data::mrclam::MrclamFrame) -> Self {
         Self {
             dt: f.dt,
             odometry: f.odometry,
@@ -1658,7 +1658,7 @@ mod tests {
             eprintln!("skipping: {} not found", dir.display());
             return;
         }
-        let run = quarry_sim::mrclam::load(&dir, 1).unwrap();
+        let run = quarry_data::mrclam::load(&dir, 1).unwrap();
         let res = run_mrclam(&mrclam_config(20), &run, 1).unwrap();
         let (er, _) = mean_var(&res.robot_err);
         let te: Vec<f64> = res.target_err.iter().map(|e| mean_var(e).0).collect();
@@ -2091,7 +2091,7 @@ pub fn mrclam_config(particles: usize) -> SlamotConfig {
 /// Runs the tracker on an MRCLAM run and scores it against Vicon.
 pub fn run_mrclam(
     cfg: &SlamotConfig,
-    run: &quarry_sim::mrclam::MrclamRun,
+    run: &quarry_data::mrclam::MrclamRun,
     filter_seed: u64,
 ) -> Result<MrclamResult, SlamotError> {
     let mut tr =

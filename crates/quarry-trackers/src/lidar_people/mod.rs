@@ -36,7 +36,7 @@ pub use tracker::{
     ContourDetector, ContourFit, FusedPoints, KfGnnTracker, LidarTrack, Table1Tracker,
 };
 
-use crate::TrackerError;
+use crate::{TrackerConfig as _, TrackerError};
 use quarry_assoc::PositionVelocityGate;
 use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermConfig, SigmaMode};
 use quarry_cloud::cluster::MeanShift;
