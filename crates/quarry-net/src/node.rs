@@ -13,9 +13,10 @@
 //!   duplicates are what the server's frame assembler handles.
 
 use crate::NetError;
+use quarry_trackers::TrackerConfig as _;
 use crate::envelope::{EndOfStream, SimMessage, SimStep};
 use crate::transport::{Subscription, Transport, keys};
-use quarry_cloud::csv_scans::ScanCsvReader;
+use quarry_data::scans_csv::ScanCsvReader;
 use quarry_cloud::net::ClockSync;
 use quarry_cloud::net::SyncMode;
 use quarry_cloud::net::wire::{Header, Hello, Kind, Message, Payload};
@@ -113,7 +114,7 @@ impl<R: Read> CsvSource<R> {
         }
     }
     /// The reader's counters (rows, skipped rows, invalid beams).
-    pub fn stats(&self) -> quarry_cloud::csv_scans::ScanCsvStats {
+    pub fn stats(&self) -> quarry_data::scans_csv::ScanCsvStats {
         self.reader.stats()
     }
 }

@@ -12,6 +12,7 @@
 //! the assembler every few milliseconds.
 
 use crate::NetError;
+use quarry_trackers::TrackerConfig as _;
 use crate::envelope::{SimMessage, SimStep, TrackMessage};
 use crate::transport::{Transport, keys, sensor_of_key};
 use quarry_cloud::net::FusionStats;

@@ -408,7 +408,7 @@ impl crate::TrackerConfig for LidarPeopleConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{PresetName, TrackerConfig};
+    use crate::TrackerConfig;
 
     #[test]
     fn toml_round_trip_and_defaults() {
