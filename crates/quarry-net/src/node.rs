@@ -13,15 +13,15 @@
 //!   duplicates are what the server's frame assembler handles.
 
 use crate::NetError;
-use quarry_trackers::TrackerConfig as _;
 use crate::envelope::{EndOfStream, SimMessage, SimStep};
 use crate::transport::{Subscription, Transport, keys};
-use quarry_data::scans_csv::ScanCsvReader;
 use quarry_cloud::net::ClockSync;
 use quarry_cloud::net::SyncMode;
 use quarry_cloud::net::wire::{Header, Hello, Kind, Message, Payload};
 use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
+use quarry_data::scans_csv::ScanCsvReader;
 use quarry_sim::lidar_room::{RoomEvent, Runner, Scenario};
+use quarry_trackers::TrackerConfig as _;
 use quarry_trackers::lidar_people::{
     ClientPipeline, LidarPeopleConfig, background_of, encode_dynamic,
 };

@@ -12,13 +12,13 @@
 //! the assembler every few milliseconds.
 
 use crate::NetError;
-use quarry_trackers::TrackerConfig as _;
 use crate::envelope::{SimMessage, SimStep, TrackMessage};
 use crate::transport::{Transport, keys, sensor_of_key};
 use quarry_cloud::net::FusionStats;
 use quarry_cloud::net::wire::{Header, Kind, Message, Payload};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_sim::lidar_room::FRAME_US;
+use quarry_trackers::TrackerConfig as _;
 use quarry_trackers::lidar_people::{
     AssemblerFusion, DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
 };

@@ -160,7 +160,8 @@ impl JpdaTracker {
         let (m, n, k) = cfg.m_of_n;
         let m_of_n = MOfN::new(m, n, k)?;
         if !(cfg.birth_vel_sigma.is_finite() && cfg.birth_vel_sigma > 0.0) {
-            return Err(TrackerError::config("jpda", 
+            return Err(TrackerError::config(
+                "jpda",
                 "birth_vel_sigma must be positive",
             ));
         }

@@ -9,11 +9,11 @@ use quarry_core::{BackgroundModel, Pose2, TimeUs};
 use quarry_sim::lidar_room::{
     CALIB_MAX_ROT_DEG, CALIB_MAX_SHIFT_M, RoomEvent, Runner, Scenario, SpeedBand,
 };
-use quarry_trackers::{TrackerConfig as _, TrackerError};
 use quarry_trackers::lidar_people::{
     Calibration, CalibrationReport, LidarPeopleConfig, Paper003Metrics, Preset, background_of,
     calibrate_backgrounds, calibrate_scenario, evaluate_paper003, gate_of, run_room_default,
 };
+use quarry_trackers::{TrackerConfig as _, TrackerError};
 use std::sync::OnceLock;
 
 fn icp() -> LidarPeopleConfig {

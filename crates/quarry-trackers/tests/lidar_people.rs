@@ -3,8 +3,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry_core::TimeUs;
-use quarry_trackers::TrackerConfig as _;
 use quarry_sim::lidar_room::{Scenario, SpeedBand};
+use quarry_trackers::TrackerConfig as _;
 use quarry_trackers::lidar_people::{
     FusionTime, LidarPeopleConfig, Paper003Metrics, Preset, evaluate_paper003, gate_of,
     run_room_default,

@@ -5,8 +5,8 @@
 //! background model, the detector or the scoring regress.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use quarry_data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_core::Pose2;
+use quarry_data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_trackers::lidar_people::{
     LidarPeopleConfig, parse_legs_csv, run_recorded, score_labelled,
 };

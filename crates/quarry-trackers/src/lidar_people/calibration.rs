@@ -122,11 +122,14 @@ pub fn rough_poses(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Vec<Pose2>,
     let r = reference_index(&sc.scanners, cfg)?;
     if !cfg.calib_rough_poses.is_empty() {
         if cfg.calib_rough_poses.len() != sc.scanners.len() {
-            return Err(TrackerError::config("lidar_people", format!(
-                "calib_rough_poses has {} poses, the scenario has {} scanners",
-                cfg.calib_rough_poses.len(),
-                sc.scanners.len()
-            )));
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!(
+                    "calib_rough_poses has {} poses, the scenario has {} scanners",
+                    cfg.calib_rough_poses.len(),
+                    sc.scanners.len()
+                ),
+            ));
         }
         return Ok(cfg
             .calib_rough_poses
@@ -149,11 +152,14 @@ fn reference_index(
         .iter()
         .position(|s| s.id.0 == cfg.calib_reference)
         .ok_or_else(|| {
-            TrackerError::config("lidar_people", format!(
-                "calib_reference = {} is not a scanner of the scenario (ids {:?})",
-                cfg.calib_reference,
-                scanners.iter().map(|s| s.id.0).collect::<Vec<_>>()
-            ))
+            TrackerError::config(
+                "lidar_people",
+                format!(
+                    "calib_reference = {} is not a scanner of the scenario (ids {:?})",
+                    cfg.calib_reference,
+                    scanners.iter().map(|s| s.id.0).collect::<Vec<_>>()
+                ),
+            )
         })
 }
 
@@ -169,12 +175,15 @@ pub fn calibrate_backgrounds(
     t: TimeUs,
 ) -> Result<CalibrationReport, TrackerError> {
     if scanners.len() != rough.len() || scanners.len() != backgrounds.len() {
-        return Err(TrackerError::config("lidar_people", format!(
-            "calibration needs one rough pose and one background per scanner: {} scanners, {} poses, {} backgrounds",
-            scanners.len(),
-            rough.len(),
-            backgrounds.len()
-        )));
+        return Err(TrackerError::config(
+            "lidar_people",
+            format!(
+                "calibration needs one rough pose and one background per scanner: {} scanners, {} poses, {} backgrounds",
+                scanners.len(),
+                rough.len(),
+                backgrounds.len()
+            ),
+        ));
     }
     let r = reference_index(scanners, cfg)?;
     let cc = CalibConfig {
@@ -284,7 +293,8 @@ impl PendingCalibration {
     /// For the scanners of `sc` under `cfg` (which must say `calibration = icp`).
     pub(crate) fn new(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Self, TrackerError> {
         if cfg.calibration != Calibration::Icp {
-            return Err(TrackerError::config("lidar_people", 
+            return Err(TrackerError::config(
+                "lidar_people",
                 "calibration from the backgrounds needs calibration = icp",
             ));
         }
@@ -354,7 +364,8 @@ pub fn calibrate_scenario(
     };
     cfg.validate()?;
     if !cfg.revealed_background {
-        return Err(TrackerError::config("lidar_people", 
+        return Err(TrackerError::config(
+            "lidar_people",
             "calibration = icp needs the long-term background b_n (revealed_background = true)",
         ));
     }
@@ -364,7 +375,8 @@ pub fn calibrate_scenario(
         .iter()
         .map(|s| Ok(ClientPipeline::new(s.id, background_of(&cfg, &s.geometry)?)))
         .collect::<Result<Vec<_>, TrackerError>>()?;
-    let mut runner = Runner::new(sc).map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
+    let mut runner =
+        Runner::new(sc).map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
     while let Some(ev) = runner
         .next_event()
         .map_err(|e| TrackerError::config("lidar_people", e.to_string()))?
@@ -376,7 +388,8 @@ pub fn calibrate_scenario(
             }
         }
     }
-    Err(TrackerError::config("lidar_people", 
+    Err(TrackerError::config(
+        "lidar_people",
         "the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)",
     ))
 }

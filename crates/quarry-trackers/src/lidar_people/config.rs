@@ -305,7 +305,6 @@ impl LidarPeopleConfig {
             ..Self::faithful()
         }
     }
-
 }
 
 impl crate::TrackerConfig for LidarPeopleConfig {
@@ -348,9 +347,10 @@ impl crate::TrackerConfig for LidarPeopleConfig {
         ];
         for (name, v) in pos {
             if !(v.is_finite() && v > 0.0) {
-                return Err(TrackerError::config("lidar_people", format!(
-                    "{name} must be finite and > 0, got {v}"
-                )));
+                return Err(TrackerError::config(
+                    "lidar_people",
+                    format!("{name} must be finite and > 0, got {v}"),
+                ));
             }
         }
         let nonneg = [
@@ -360,17 +360,22 @@ impl crate::TrackerConfig for LidarPeopleConfig {
         ];
         for (name, v) in nonneg {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(TrackerError::config("lidar_people", format!(
-                    "{name} must be finite and >= 0, got {v}"
-                )));
+                return Err(TrackerError::config(
+                    "lidar_people",
+                    format!("{name} must be finite and >= 0, got {v}"),
+                ));
             }
         }
         if !(self.p_th < 1.0 && self.alpha_b <= 1.0) {
-            return Err(TrackerError::config("lidar_people", "p_th must be < 1 and alpha_b <= 1",
+            return Err(TrackerError::config(
+                "lidar_people",
+                "p_th must be < 1 and alpha_b <= 1",
             ));
         }
         if self.window_m < 2 || self.k_m < 3 || self.icp_it_max == 0 || self.min_num_point == 0 {
-            return Err(TrackerError::config("lidar_people", "window_m >= 2, k_m >= 3, icp_it_max >= 1 and min_num_point >= 1 are required",
+            return Err(TrackerError::config(
+                "lidar_people",
+                "window_m >= 2, k_m >= 3, icp_it_max >= 1 and min_num_point >= 1 are required",
             ));
         }
         for (name, v) in [
@@ -382,9 +387,10 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             ),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(TrackerError::config("lidar_people", format!(
-                    "{name} must be finite and >= 0, got {v}"
-                )));
+                return Err(TrackerError::config(
+                    "lidar_people",
+                    format!("{name} must be finite and >= 0, got {v}"),
+                ));
             }
         }
         if let Some((i, p)) = self
@@ -393,12 +399,15 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             .enumerate()
             .find(|(_, p)| !p.iter().all(|v| v.is_finite()))
         {
-            return Err(TrackerError::config("lidar_people", format!(
-                "calib_rough_poses[{i}] must be finite, got {p:?}"
-            )));
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!("calib_rough_poses[{i}] must be finite, got {p:?}"),
+            ));
         }
         if self.kf_m == 0 || self.kf_m > self.kf_n || self.kf_n > 64 {
-            return Err(TrackerError::config("lidar_people", "kf-gnn needs 1 <= kf_m <= kf_n <= 64",
+            return Err(TrackerError::config(
+                "lidar_people",
+                "kf-gnn needs 1 <= kf_m <= kf_n <= 64",
             ));
         }
         Ok(())

@@ -95,10 +95,13 @@ pub trait Fusion {
     /// cannot run with calibrated poses.
     fn set_pose(&mut self, sensor: SensorId, pose: Pose2) -> Result<(), TrackerError> {
         let _ = pose;
-        Err(TrackerError::config("lidar_people", format!(
-            "this fusion stage cannot change the pose of sensor {} (calibration = icp needs Fusion::set_pose)",
-            sensor.0
-        )))
+        Err(TrackerError::config(
+            "lidar_people",
+            format!(
+                "this fusion stage cannot change the pose of sensor {} (calibration = icp needs Fusion::set_pose)",
+                sensor.0
+            ),
+        ))
     }
 }
 
@@ -245,7 +248,8 @@ where
         .collect::<Result<Vec<_>, TrackerError>>()?;
     let geoms: Vec<ScanGeometry> = sc.scanners.iter().map(|s| s.geometry).collect();
     let duration = sc.duration_s;
-    let mut runner = Runner::new(sc).map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
+    let mut runner =
+        Runner::new(sc).map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
     let mut server = ServerPipeline::new(fusion, tracker, cfg.frame_period_s);
     let mut queue: BinaryHeap<Reverse<(i64, u64, usize)>> = BinaryHeap::new();
     let mut pending: Vec<Option<DynamicScan>> = Vec::new();
@@ -330,7 +334,8 @@ where
     // flush: everything arrives, then the last frames close at their deadline
     let end = run.gt.last().map_or(0, |g| g.t.0) + 1_000_000;
     if calib.is_some() {
-        return Err(TrackerError::config("lidar_people", 
+        return Err(TrackerError::config(
+            "lidar_people",
             "calibration = icp: the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)",
         ));
     }
@@ -460,7 +465,8 @@ pub fn run_room_default(
     progress: &mut dyn FnMut(f64),
 ) -> Result<RoomRun, TrackerError> {
     if cfg.calibration == super::Calibration::Icp && !cfg.revealed_background {
-        return Err(TrackerError::config("lidar_people", 
+        return Err(TrackerError::config(
+            "lidar_people",
             "calibration = icp needs the long-term background b_n (revealed_background = true; the literal preset keeps none)",
         ));
     }
