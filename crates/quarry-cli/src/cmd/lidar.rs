@@ -8,14 +8,15 @@ use crate::output::{CmdResult, Output};
 use crate::progress;
 use clap::Args;
 use plotters::prelude::*;
-use quarry_cloud::csv_scans::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_core::{Point2, Pose2, TimeUs};
+use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_sim::lidar_room::{
     ClockProfile, GtWriter, NetworkModel, Obstacle, Room, ScannerSim, Scenario, SpeedBand,
 };
 use quarry_trackers::lidar_people::{
     self, EvalFrame, LidarPeopleConfig, LidarTrack, Paper003Metrics, Preset, RoomRun,
 };
+use quarry_trackers::{PresetName as _, TrackerConfig as _};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -176,8 +177,11 @@ pub(crate) fn preset_config(
         for (k, v) in user {
             table.insert(k, v);
         }
-        cfg = LidarPeopleConfig::from_toml(&toml::to_string(&table).map_err(|e| e.to_string())?)
-            .map_err(|e| e.to_string())?;
+        cfg = LidarPeopleConfig::from_toml(
+            &toml::to_string(&table).map_err(|e| e.to_string())?,
+            None,
+        )
+        .map_err(|e| e.to_string())?;
     }
     Ok(cfg)
 }

@@ -3,9 +3,9 @@
 
 use crate::output::{CmdResult, Output};
 use clap::Args;
-use quarry_cloud::csv_scans::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
 use quarry_cloud::net::SyncMode;
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry_data::scans_csv::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
 use quarry_net::{
     CsvSource, NodeSummary, SensorSpec, ServerRun, SimSource, Transport, WallNodeOptions,
     WallServerOptions,

@@ -728,7 +728,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
                 .into(),
         );
     }
-    let run = quarry_sim::mrclam::load(dir, args.robot)?;
+    let run = quarry_data::mrclam::load(dir, args.robot)?;
     let mut cfg = mrclam_config(args.particles);
     if args.mode != ModeArg::Jipda {
         eprintln!(
