@@ -75,13 +75,12 @@ pub struct ConfigArgs<P: PresetName> {
 impl<P: PresetName> ConfigArgs<P> {
     /// The configuration these flags ask for, validated (once, here).
     pub fn load<C: TrackerConfig<Preset = P>>(&self) -> Result<C, TrackerError> {
-        match &self.config {
-            Some(path) => C::from_toml_file(path, self.preset),
-            None => {
-                let c = self.preset.map_or_else(C::default, C::preset);
-                c.validate()?;
-                Ok(c)
-            }
+        if let Some(path) = &self.config {
+            C::from_toml_file(path, self.preset)
+        } else {
+            let c = self.preset.map_or_else(C::default, C::preset);
+            c.validate()?;
+            Ok(c)
         }
     }
 }
