@@ -3,8 +3,9 @@
 //!
 //! `cargo run --release --example rgbd_person -- [s1..s6] [seed]`
 
+use quarry::repro::rgbd::{OdometryFeed, run_scenario};
 use quarry::sim::rgbd::{RgbdScene, ScenarioId};
-use quarry::trackers::rgbd_person::{OdometryFeed, RgbdPersonConfig, run_scenario};
+use quarry::trackers::rgbd_person::RgbdPersonConfig;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);

@@ -5,10 +5,9 @@
 //!
 //! `cargo run --release --example rgbd_protocol -- [s1,s2,..|all] [n_seeds]`
 
+use quarry::repro::rgbd::{OdometryFeed, ScenarioSummary, run_scenario_multi};
 use quarry::sim::rgbd::{RgbdScene, ScenarioId};
-use quarry::trackers::rgbd_person::{
-    OdometryFeed, RgbdPersonConfig, ScenarioSummary, run_scenario_multi,
-};
+use quarry::trackers::rgbd_person::RgbdPersonConfig;
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     #[allow(clippy::cast_precision_loss)]

@@ -66,7 +66,7 @@ pub enum Similarity {
 
 /// Parameters of the appearance model. `Default` = the spec's `paper()` values (§3).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct PatchModelConfig {
     /// Patches per side N (spec default 4, an unstated paper value).
     pub n: u32,

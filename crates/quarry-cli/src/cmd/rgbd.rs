@@ -8,13 +8,16 @@ use std::time::Instant;
 use clap::Args;
 use image::{Rgb, RgbImage};
 use quarry_core::{BBox, EgoMotion, Plane, SingleTargetTracker, Stamp};
+use quarry_repro::rgbd::{OdometryFeed, ScenarioSummary, run_scenario, run_scenario_frames};
 use quarry_sim::rgbd::{RgbdScene, ScenarioId};
 use quarry_trackers::rgbd_person::{
-    OcclusionState, OdometryFeed, RgbdPersonConfig, RgbdPersonTracker, TrackOutput, run_scenario,
+    OcclusionState, Preset, RgbdPersonConfig, RgbdPersonTracker, TrackOutput,
 };
+use quarry_trackers::{PresetName, TrackerError};
 use quarry_vision::RgbdFrame;
 use serde::Serialize;
 
+use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, fmt_opt};
 
 /// Arguments of `quarry rgbd`.
@@ -34,20 +37,25 @@ first box from --init x,y,w,h (top-left, pixels) or DIR/init.txt. Without odomet
 runs with no ego-motion. Real sequences use the default Kinect intrinsics unless --config sets \
 them.
 
---baseline runs the whole-target colour-texture baseline instead. --config FILE reads a TOML \
-RgbdPersonConfig (missing keys keep the paper() defaults).
+Configuration: --preset NAME picks a named configuration (default paper; the list is under \
+--preset: the paper, strict, the whole-target baseline and the one-switch ablations of spec \
+5.5). --config FILE.toml reads a TOML RgbdPersonConfig laid over the preset: keys missing from \
+the file keep the preset's values, a `preset = \"name\"` key in the file picks the preset, and \
+unknown keys or tables are errors. --baseline is the older spelling of --preset baseline (with \
+--config, the file is laid over the baseline preset).
 
 Output: with --out DIR, boxes.txt in MOTChallenge form (frame,id,x,y,w,h,conf,-1,-1,-1; \
 1-based frames; conf 1 for a detection, 0 for a prediction) and frames/NNNNNN.png annotated \
 (green = accepted detection, yellow = partial / severe occlusion, red = MEKF prediction).
 
-JSON (--json): {scenario|sequence, frames, center_err_px, success_rate_iou50, \
+JSON (--json): {scenario|sequence, preset, frames, center_err_px, success_rate_iou50, \
 recovery_frames, ms_per_frame, summary}; the accuracy fields are null without ground truth \
 (recovery_frames is null when never recovered).
 
 EXAMPLE:
   quarry rgbd --scenario s1 --seed 0
   quarry rgbd --scenario s1 --baseline --json
+  quarry rgbd --scenario s6 --preset no-ego
   quarry rgbd --sequence ptb/child_no1 --init 232,145,80,200 --out res/"
 )]
 pub struct RgbdArgs {
@@ -66,12 +74,12 @@ pub struct RgbdArgs {
     /// Depth PNG encoding of --sequence: ptb (3-bit circular shift) or mm.
     #[arg(long, default_value = "ptb")]
     pub depth_format: String,
-    /// Run the whole-target baseline.
-    #[arg(long)]
+    /// Run the whole-target baseline: the same as --preset baseline.
+    #[arg(long, conflicts_with = "preset")]
     pub baseline: bool,
-    /// TOML configuration file.
-    #[arg(long, value_name = "FILE")]
-    pub config: Option<PathBuf>,
+    // --preset NAME and --config FILE.toml (laid over the preset)
+    #[command(flatten)]
+    pub cfg: ConfigArgs<Preset>,
     /// Feed the synthetic run the noisy odometry (5 % proportional).
     #[arg(long)]
     pub noisy_odometry: bool,
@@ -84,12 +92,13 @@ pub struct RgbdArgs {
 struct Report {
     scenario: Option<String>,
     sequence: Option<String>,
+    preset: &'static str,
     frames: usize,
     center_err_px: Option<f64>,
     success_rate_iou50: Option<f64>,
     recovery_frames: Option<usize>,
     ms_per_frame: f64,
-    summary: Option<quarry_trackers::rgbd_person::ScenarioSummary>,
+    summary: Option<ScenarioSummary>,
 }
 
 fn parse_box(s: &str) -> Result<BBox, CmdError> {
@@ -248,22 +257,26 @@ impl Writer {
     }
 }
 
-fn config(args: &RgbdArgs) -> Result<RgbdPersonConfig, CmdError> {
-    let mut c = match &args.config {
-        Some(p) => RgbdPersonConfig::from_toml(
-            &std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?,
-        )?,
-        None => RgbdPersonConfig::paper(),
-    };
+/// The configuration of `--preset` / `--baseline` and `--config`, validated.
+fn config(args: &RgbdArgs) -> Result<RgbdPersonConfig, TrackerError> {
+    let mut flags = args.cfg.clone();
     if args.baseline {
-        let b = RgbdPersonConfig::whole_target_baseline();
-        c = RgbdPersonConfig {
-            intrinsics: c.intrinsics,
-            mount: c.mount,
-            ..b
-        };
+        flags.preset = Some(Preset::Baseline);
     }
-    Ok(c)
+    flags.load()
+}
+
+/// What the human-readable line calls the tracker.
+fn tracker_name(cfg: &RgbdPersonConfig) -> String {
+    let kind = if cfg.baseline {
+        "whole-target baseline"
+    } else {
+        "patch multi-cue"
+    };
+    match cfg.preset {
+        Preset::Paper | Preset::Baseline => kind.to_owned(),
+        p => format!("{kind}, preset {}", p.name()),
+    }
 }
 
 /// Runs `quarry rgbd`.
@@ -312,6 +325,7 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
     let rep = Report {
         scenario: Some(id.name().into()),
         sequence: None,
+        preset: cfg.preset.name(),
         frames: recs.len() + 1,
         center_err_px: Some(s.center_err_px),
         success_rate_iou50: Some(s.success_rate_iou50),
@@ -327,7 +341,7 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
              height within 10 % {}, {:.1} ms/frame\n",
             id.name(),
             args.seed,
-            if args.baseline { "whole-target baseline" } else { "patch multi-cue" },
+            tracker_name(&cfg),
             s.success_rate_iou50,
             s.center_err_px,
             s.recovery_frames.map_or("never".into(), |r| format!("{r} frames")),
@@ -421,6 +435,7 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
     let rep = Report {
         scenario: None,
         sequence: Some(dir.display().to_string()),
+        preset: cfg.preset.name(),
         frames: rgbs.len(),
         center_err_px: None,
         success_rate_iou50: None,
@@ -450,14 +465,7 @@ pub fn demo_rows(seed: u64) -> Result<Vec<super::demo::Row>, CmdError> {
         ("rgbd-person", RgbdPersonConfig::paper()),
         ("rgbd-baseline", RgbdPersonConfig::whole_target_baseline()),
     ] {
-        let (s, _) = quarry_trackers::rgbd_person::run_scenario_frames(
-            &scene,
-            seed,
-            &cfg,
-            OdometryFeed::Exact,
-            210,
-            |_, _| {},
-        )?;
+        let (s, _) = run_scenario_frames(&scene, seed, &cfg, OdometryFeed::Exact, 210, |_, _| {})?;
         for (metric, value) in [
             ("success@IoU0.5", s.success_rate_iou50),
             ("centre error (px)", s.center_err_px),
@@ -534,10 +542,61 @@ mod tests {
             init: None,
             depth_format: "ptb".into(),
             baseline: false,
-            config: None,
+            cfg: ConfigArgs::default(),
             noisy_odometry: false,
             out,
         }
+    }
+
+    fn parse(flags: &[&str]) -> Result<RgbdArgs, clap::Error> {
+        use clap::Parser as _;
+        let cli = crate::Cli::try_parse_from(["quarry", "rgbd"].iter().chain(flags))?;
+        match cli.command {
+            crate::Command::Rgbd(a) => Ok(a),
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    #[test]
+    fn preset_baseline_and_config_flags() {
+        use quarry_trackers::TrackerConfig as _;
+        let cfg = |flags: &[&str]| config(&parse(flags).unwrap());
+        assert_eq!(cfg(&[]).unwrap(), RgbdPersonConfig::paper());
+        // --baseline is --preset baseline
+        let baseline = RgbdPersonConfig::whole_target_baseline();
+        assert_eq!(cfg(&["--baseline"]).unwrap(), baseline);
+        assert_eq!(cfg(&["--preset", "baseline"]).unwrap(), baseline);
+        assert!(parse(&["--baseline", "--preset", "strict"]).is_err());
+        // every preset by name, `_` for `-` too
+        for &p in Preset::ALL {
+            assert_eq!(
+                cfg(&["--preset", p.name()]).unwrap(),
+                RgbdPersonConfig::preset(p)
+            );
+        }
+        assert!(!cfg(&["--preset", "no_ego"]).unwrap().ego);
+        assert!(parse(&["--preset", "sideways"]).is_err());
+        // --config over the preset; unknown keys and tables are errors naming them
+        let dir = std::env::temp_dir().join(format!("quarry-rgbd-cfg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = |name: &str, text: &str| {
+            let p = dir.join(name);
+            std::fs::write(&p, text).unwrap();
+            p.display().to_string()
+        };
+        let ok = file("ok.toml", "c_base = 0.8\n[intrinsics]\nfx = 500.0\n");
+        let c = cfg(&["--baseline", "--config", &ok]).unwrap();
+        assert!(c.baseline && (c.c_base - 0.8).abs() < 1e-12 && c.intrinsics.fx == 500.0);
+        assert_eq!(c.model, baseline.model);
+        let c = cfg(&["--config", &ok]).unwrap();
+        assert!(!c.baseline && (c.c_base - 0.8).abs() < 1e-12);
+        let named = file("named.toml", "preset = \"no-ego\"\n");
+        assert!(!cfg(&["--config", &named]).unwrap().ego);
+        assert!(cfg(&["--baseline", "--config", &named]).is_err());
+        let typo = file("typo.toml", "[modle]\nn = 3\n");
+        let e = cfg(&["--config", &typo]).unwrap_err();
+        assert!(e.to_string().contains("modle"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

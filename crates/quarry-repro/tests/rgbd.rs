@@ -2,14 +2,19 @@
 //!
 //! The default test runs one seed of S2 (fast); the full protocol (six scenarios, seeds 0-4,
 //! patch tracker vs baseline) is `#[ignore]`d: run it in release with
-//! `cargo test --release -p quarry-trackers --test rgbd_scenarios -- --ignored --nocapture`.
+//! `cargo test --release -p quarry-repro --test rgbd -- --ignored --nocapture`.
+//!
+//! Also the template drift score (spec §5.4 b) on hand-made frames.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use quarry_sim::rgbd::{RgbdScene, ScenarioId};
-use quarry_trackers::rgbd_person::{
-    OdometryFeed, RgbdPersonConfig, ScenarioSummary, run_scenario, run_scenario_multi,
+use quarry_core::{BBox, SingleTargetTracker, Stamp};
+use quarry_repro::rgbd::{
+    OdometryFeed, ScenarioSummary, run_scenario, run_scenario_multi, template_drift,
 };
+use quarry_sim::rgbd::{RgbdScene, ScenarioId};
+use quarry_trackers::rgbd_person::{RgbdPersonConfig, RgbdPersonTracker};
+use quarry_vision::RgbdFrame;
 
 fn run(id: ScenarioId, seed: u64, cfg: &RgbdPersonConfig, odo: OdometryFeed) -> ScenarioSummary {
     let scene = RgbdScene::new(id, seed).unwrap();
@@ -172,4 +177,46 @@ fn s6_mekf_blackout() {
     assert!(e <= 10.0 && n <= 25.0 && z >= 3.0 * e);
     assert!(exact.iter().all(|s| err(s) <= 20.0), "{exact:?}");
     assert!(noisy.iter().all(|s| err(s) <= 28.0), "{noisy:?}");
+}
+
+#[test]
+fn template_drift_is_one_for_an_unchanged_template_and_lower_for_another() {
+    let frame = |rgb: Vec<u8>| {
+        RgbdFrame::new(
+            640,
+            480,
+            rgb,
+            quarry_core::Plane::new(640, 480, 2.0),
+            quarry_core::EgoMotion::None,
+        )
+        .unwrap()
+    };
+    // a colour-noise frame (seeded LCG) and a flat grey one, same box
+    let mut x = 12_345u32;
+    let noise: Vec<u8> = (0..640 * 480 * 3)
+        .map(|_| {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (x >> 24) as u8
+        })
+        .collect();
+    let b = BBox::from_ltwh(300.0, 100.0, 80.0, 250.0);
+    let model = |f: &RgbdFrame, cfg: RgbdPersonConfig| {
+        let mut t = RgbdPersonTracker::new(cfg).unwrap();
+        t.init(Stamp::from_frame(0, 0.1), f, b).unwrap();
+        t.template().unwrap().clone()
+    };
+    let a = model(&frame(noise), RgbdPersonConfig::paper());
+    let g = model(
+        &frame(vec![100u8; 640 * 480 * 3]),
+        RgbdPersonConfig::paper(),
+    );
+    let same = template_drift(&a, &a).unwrap().unwrap();
+    assert!((same - 1.0).abs() < 1e-6, "{same}");
+    let other = template_drift(&a, &g).unwrap().unwrap();
+    assert!(other < 0.9, "{other}");
+    // a template of another grid is refused
+    let mut c = RgbdPersonConfig::paper();
+    c.model.n = 3;
+    let small = model(&frame(vec![100u8; 640 * 480 * 3]), c);
+    assert!(template_drift(&a, &small).is_err());
 }
