@@ -20,7 +20,6 @@ use crate::transport::{Transport, keys, sensor_of_key};
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 #[cfg(feature = "sim")]
 use quarry_sim::lidar_room::FRAME_US;
-use quarry_trackers::TrackerConfig as _;
 use quarry_trackers::lidar_people::{
     DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
 };
