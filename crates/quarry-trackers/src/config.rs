@@ -1,35 +1,4 @@
-//! The one configuration convention of every tracker.
-//!
-//! Each tracker has a configuration type (`SlamotConfig`, `LidarPeopleConfig`, ...) and an enum
-//! of named presets. The convention:
-//! - `Default` is the paper's configuration, and is one of the presets;
-//! - [`TrackerConfig::preset`] gives the configuration of a named preset;
-//! - TOML is read *over a preset*: keys missing from the file keep that preset's values, unknown
-//!   keys are an error ([`TrackerConfig::from_toml`]); a top-level `preset = "name"` key in the
-//!   file chooses the base preset when the caller does not;
-//! - [`TrackerConfig::validate`] checks every field and every rule between fields, and is the
-//!   only place those rules are written. It is called once, where a configuration is read (the
-//!   TOML functions here) or where a tracker is built from one.
-//!
-//! Adding a preset is one variant (with its doc line) in the tracker's preset enum, its arm in
-//! the tracker's `preset()` and its name in `Preset::ALL`: all in the tracker's `config.rs`.
-//!
-//! ```
-//! use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
-//! use quarry_trackers::{PresetName, TrackerConfig};
-//! // TOML over the kf-gnn preset: one key changed, every other key from kf-gnn
-//! let cfg = LidarPeopleConfig::from_toml("kf_sigma_r = 0.05", Some(Preset::KfGnn))?;
-//! assert_eq!(cfg.preset, Preset::KfGnn);
-//! assert_eq!(cfg.kf_sigma_r, 0.05);
-//! // the file may name its preset itself
-//! let cfg = LidarPeopleConfig::from_toml("preset = \"literal\"", None)?;
-//! assert_eq!(cfg, LidarPeopleConfig::preset(Preset::Literal));
-//! // unknown keys and bad values are errors that name them
-//! assert!(LidarPeopleConfig::from_toml("kf_sigma_x = 1", None).is_err());
-//! assert!(LidarPeopleConfig::from_toml("kf_sigma_r = -1", None).is_err());
-//! assert_eq!(Preset::parse("kf-gnn")?, Preset::KfGnn);
-//! # Ok::<(), quarry_trackers::TrackerError>(())
-//! ```
+//! The one configuration convention of every tracker: [`TrackerConfig`] and [`PresetName`].
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -66,7 +35,38 @@ pub trait PresetName: Copy + Eq + std::fmt::Debug + Send + Sync + 'static {
     }
 }
 
-/// A tracker configuration following the crate's convention (see the [module docs](self)).
+/// The one configuration convention of every tracker.
+///
+/// Each tracker has a configuration type (`SlamotConfig`, `LidarPeopleConfig`, ...) and an enum
+/// of named presets. The convention:
+/// - `Default` is the paper's configuration, and is one of the presets;
+/// - [`TrackerConfig::preset`] gives the configuration of a named preset;
+/// - TOML is read *over a preset*: keys missing from the file keep that preset's values, unknown
+///   keys are an error ([`TrackerConfig::from_toml`]); a top-level `preset = "name"` key in the
+///   file chooses the base preset when the caller does not;
+/// - [`TrackerConfig::validate`] checks every field and every rule between fields, and is the
+///   only place those rules are written. It is called once, where a configuration is read (the
+///   TOML functions here) or where a tracker is built from one.
+///
+/// Adding a preset is one variant (with its doc line) in the tracker's preset enum, its arm in
+/// the tracker's `preset()` and its name in `Preset::ALL`: all in the tracker's `config.rs`.
+///
+/// ```
+/// use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
+/// use quarry_trackers::{PresetName, TrackerConfig};
+/// // TOML over the kf-gnn preset: one key changed, every other key from kf-gnn
+/// let cfg = LidarPeopleConfig::from_toml("kf_sigma_r = 0.05", Some(Preset::KfGnn))?;
+/// assert_eq!(cfg.preset, Preset::KfGnn);
+/// assert_eq!(cfg.kf_sigma_r, 0.05);
+/// // the file may name its preset itself
+/// let cfg = LidarPeopleConfig::from_toml("preset = \"literal\"", None)?;
+/// assert_eq!(cfg, LidarPeopleConfig::preset(Preset::Literal));
+/// // unknown keys and bad values are errors that name them
+/// assert!(LidarPeopleConfig::from_toml("kf_sigma_x = 1", None).is_err());
+/// assert!(LidarPeopleConfig::from_toml("kf_sigma_r = -1", None).is_err());
+/// assert_eq!(Preset::parse("kf-gnn")?, Preset::KfGnn);
+/// # Ok::<(), quarry_trackers::TrackerError>(())
+/// ```
 pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOwned {
     /// The tracker's preset enum.
     type Preset: PresetName;
@@ -90,6 +90,7 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
     fn from_toml(text: &str, preset: Option<Self::Preset>) -> Result<Self, TrackerError> {
         let toml_err = |source| TrackerError::Toml {
             tracker: Self::NAME,
+            file: None,
             source,
         };
         let mut user: toml::Table = toml::from_str(text).map_err(toml_err)?;
@@ -148,6 +149,13 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
                 tracker,
                 reason: format!("{}: {reason}", path.display()),
             },
+            TrackerError::Toml {
+                tracker, source, ..
+            } => TrackerError::Toml {
+                tracker,
+                file: Some(path.display().to_string()),
+                source,
+            },
             other => other,
         })
     }
@@ -175,7 +183,11 @@ fn overlay<C: TrackerConfig>(
     merge(&mut merged, user);
     toml::Value::Table(merged)
         .try_into()
-        .map_err(|source| TrackerError::Toml { tracker, source })
+        .map_err(|source| TrackerError::Toml {
+            tracker,
+            file: None,
+            source,
+        })
 }
 
 fn merge(base: &mut toml::Table, user: toml::Table) {

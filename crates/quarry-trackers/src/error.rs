@@ -38,10 +38,12 @@ pub enum TrackerError {
     },
     /// A TOML configuration that does not parse or does not fit the tracker's configuration
     /// (unknown key, wrong type, ...).
-    #[error("{tracker} configuration TOML: {source}")]
+    #[error("{tracker} configuration {}: {source}", file.as_deref().unwrap_or("TOML"))]
     Toml {
         /// Which tracker's configuration.
         tracker: &'static str,
+        /// The file it was read from, when it was.
+        file: Option<String>,
         /// The TOML error (with line and column).
         #[source]
         source: toml::de::Error,
