@@ -85,7 +85,7 @@ impl Calibration {
     }
 }
 
-/// Every parameter of spec 003 §3. Tags: **[P]** paper, **[D]** UTM-30LX datasheet, **[Q]**
+/// Every parameter of spec 003 §3. Tags: **\[P\]** paper, **\[D\]** UTM-30LX datasheet, **\[Q\]**
 /// proposed by the spec (with the reason given there).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

@@ -47,7 +47,7 @@ mod recorded;
 mod tracker;
 
 pub use calibration::{
-    CalibrationReport, PendingCalibration, ScannerCalibration, ScannerInfo, calibrate_backgrounds,
+    CalibrationReport, FREE_SPACE_MARGIN_M, PendingCalibration, ScannerCalibration, ScannerInfo, calibrate_backgrounds,
     pose_error, reference_index,
 };
 pub use config::{Calibration, FusionTime, LidarPeopleConfig, Preset};
