@@ -26,11 +26,11 @@
 //! ```
 
 mod config;
+/// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
+pub mod cv_jpda;
 /// EKF-SLAMOT: the joint-EKF baseline of paper 000 (its reference [8]).
 pub mod ekf_slamot;
 mod error;
-/// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
-pub mod jpda;
 pub mod lidar_people;
 pub mod rgbd_person;
 pub mod slamot;
