@@ -64,7 +64,7 @@ impl From<RgbdError> for TrackerError {
     fn from(e: RgbdError) -> Self {
         match e {
             RgbdError::Core(c) => TrackerError::Core(c),
-            other => TrackerError::Config(other.to_string()),
+            other => TrackerError::config("rgbd_person", other.to_string()),
         }
     }
 }
@@ -1058,7 +1058,7 @@ pub fn run_scenario_frames(
         |_, smp, o| on_frame(smp, o),
     )?;
     runs.pop()
-        .ok_or_else(|| TrackerError::Config("no run".into()))
+        .ok_or_else(|| TrackerError::config("rgbd_person", "no run"))
 }
 
 /// Runs several trackers (configuration and odometry feed each) on the same scenario, rendering
@@ -1076,7 +1076,7 @@ pub fn run_scenario_multi(
     n_frames: usize,
     mut on_frame: impl FnMut(usize, &quarry_sim::rgbd::RgbdSample, &TrackOutput),
 ) -> Result<Vec<(ScenarioSummary, Vec<FrameRecord>)>, TrackerError> {
-    let sim = |e: quarry_sim::SimError| TrackerError::Config(e.to_string());
+    let sim = |e: quarry_sim::SimError| TrackerError::config("rgbd_person", e.to_string());
     let vis_err = |e: VisionError| TrackerError::from(RgbdError::from(e));
     let mut trackers = runs
         .iter()
@@ -1086,7 +1086,7 @@ pub fn run_scenario_multi(
     let init = f0
         .truth
         .amodal
-        .ok_or_else(|| TrackerError::Config("target not in view at frame 0".into()))?;
+        .ok_or_else(|| TrackerError::config("rgbd_person", "target not in view at frame 0"))?;
     let w = scene.intrinsics.width;
     let h = scene.intrinsics.height;
     let frame0 =

@@ -21,6 +21,7 @@
 
 use super::config::{Calibration, LidarPeopleConfig};
 use super::{ClientPipeline, background_of};
+use crate::TrackerConfig as _;
 use crate::TrackerError;
 use quarry_cloud::CloudError;
 use quarry_cloud::calib::{
@@ -122,11 +123,14 @@ pub fn rough_poses(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Vec<Pose2>,
     let r = reference_index(&sc.scanners, cfg)?;
     if !cfg.calib_rough_poses.is_empty() {
         if cfg.calib_rough_poses.len() != sc.scanners.len() {
-            return Err(TrackerError::Config(format!(
-                "calib_rough_poses has {} poses, the scenario has {} scanners",
-                cfg.calib_rough_poses.len(),
-                sc.scanners.len()
-            )));
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!(
+                    "calib_rough_poses has {} poses, the scenario has {} scanners",
+                    cfg.calib_rough_poses.len(),
+                    sc.scanners.len()
+                ),
+            ));
         }
         return Ok(cfg
             .calib_rough_poses
@@ -136,7 +140,7 @@ pub fn rough_poses(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Vec<Pose2>,
     }
     let mut rough = sc
         .hand_measured_poses(cfg.calib_max_shift_m, cfg.calib_max_rot_deg.to_radians())
-        .map_err(|e| TrackerError::Config(e.to_string()))?;
+        .map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
     rough[r] = sc.scanners[r].pose;
     Ok(rough)
 }
@@ -149,11 +153,14 @@ fn reference_index(
         .iter()
         .position(|s| s.id.0 == cfg.calib_reference)
         .ok_or_else(|| {
-            TrackerError::Config(format!(
-                "calib_reference = {} is not a scanner of the scenario (ids {:?})",
-                cfg.calib_reference,
-                scanners.iter().map(|s| s.id.0).collect::<Vec<_>>()
-            ))
+            TrackerError::config(
+                "lidar_people",
+                format!(
+                    "calib_reference = {} is not a scanner of the scenario (ids {:?})",
+                    cfg.calib_reference,
+                    scanners.iter().map(|s| s.id.0).collect::<Vec<_>>()
+                ),
+            )
         })
 }
 
@@ -169,12 +176,15 @@ pub fn calibrate_backgrounds(
     t: TimeUs,
 ) -> Result<CalibrationReport, TrackerError> {
     if scanners.len() != rough.len() || scanners.len() != backgrounds.len() {
-        return Err(TrackerError::Config(format!(
-            "calibration needs one rough pose and one background per scanner: {} scanners, {} poses, {} backgrounds",
-            scanners.len(),
-            rough.len(),
-            backgrounds.len()
-        )));
+        return Err(TrackerError::config(
+            "lidar_people",
+            format!(
+                "calibration needs one rough pose and one background per scanner: {} scanners, {} poses, {} backgrounds",
+                scanners.len(),
+                rough.len(),
+                backgrounds.len()
+            ),
+        ));
     }
     let r = reference_index(scanners, cfg)?;
     let cc = CalibConfig {
@@ -284,8 +294,9 @@ impl PendingCalibration {
     /// For the scanners of `sc` under `cfg` (which must say `calibration = icp`).
     pub(crate) fn new(sc: &Scenario, cfg: &LidarPeopleConfig) -> Result<Self, TrackerError> {
         if cfg.calibration != Calibration::Icp {
-            return Err(TrackerError::Config(
-                "calibration from the backgrounds needs calibration = icp".into(),
+            return Err(TrackerError::config(
+                "lidar_people",
+                "calibration from the backgrounds needs calibration = icp",
             ));
         }
         let rough = rough_poses(sc, cfg)?;
@@ -354,9 +365,9 @@ pub fn calibrate_scenario(
     };
     cfg.validate()?;
     if !cfg.revealed_background {
-        return Err(TrackerError::Config(
-            "calibration = icp needs the long-term background b_n (revealed_background = true)"
-                .into(),
+        return Err(TrackerError::config(
+            "lidar_people",
+            "calibration = icp needs the long-term background b_n (revealed_background = true)",
         ));
     }
     let mut pending = PendingCalibration::new(&sc, &cfg)?;
@@ -365,10 +376,11 @@ pub fn calibrate_scenario(
         .iter()
         .map(|s| Ok(ClientPipeline::new(s.id, background_of(&cfg, &s.geometry)?)))
         .collect::<Result<Vec<_>, TrackerError>>()?;
-    let mut runner = Runner::new(sc).map_err(|e| TrackerError::Config(e.to_string()))?;
+    let mut runner =
+        Runner::new(sc).map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
     while let Some(ev) = runner
         .next_event()
-        .map_err(|e| TrackerError::Config(e.to_string()))?
+        .map_err(|e| TrackerError::config("lidar_people", e.to_string()))?
     {
         if let RoomEvent::Scan(cs) = ev {
             clients[cs.scanner].on_scan(&cs.scan, cs.clock_synced)?;
@@ -377,9 +389,9 @@ pub fn calibrate_scenario(
             }
         }
     }
-    Err(TrackerError::Config(
-        "the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)"
-            .into(),
+    Err(TrackerError::config(
+        "lidar_people",
+        "the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)",
     ))
 }
 

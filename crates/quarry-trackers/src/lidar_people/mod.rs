@@ -36,6 +36,7 @@ pub use tracker::{
     ContourDetector, ContourFit, FusedPoints, KfGnnTracker, LidarTrack, Table1Tracker,
 };
 
+use crate::TrackerConfig as _;
 use crate::TrackerError;
 use quarry_assoc::PositionVelocityGate;
 use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermConfig, SigmaMode};

@@ -4,6 +4,7 @@
 use super::config::{FusionTime, LidarPeopleConfig};
 use super::metrics::EvalFrame;
 use super::tracker::{FusedPoints, LidarTrack};
+use crate::TrackerConfig as _;
 use crate::TrackerError;
 use quarry_cloud::net::wire::{FLAG_CLOCK_SYNCED, Header, Kind, encode_scan};
 use quarry_cloud::net::{FrameAssembler, FrameConfig, SensorConfig};
@@ -95,10 +96,13 @@ pub trait Fusion {
     /// cannot run with calibrated poses.
     fn set_pose(&mut self, sensor: SensorId, pose: Pose2) -> Result<(), TrackerError> {
         let _ = pose;
-        Err(TrackerError::Config(format!(
-            "this fusion stage cannot change the pose of sensor {} (calibration = icp needs Fusion::set_pose)",
-            sensor.0
-        )))
+        Err(TrackerError::config(
+            "lidar_people",
+            format!(
+                "this fusion stage cannot change the pose of sensor {} (calibration = icp needs Fusion::set_pose)",
+                sensor.0
+            ),
+        ))
     }
 }
 
@@ -245,7 +249,8 @@ where
         .collect::<Result<Vec<_>, TrackerError>>()?;
     let geoms: Vec<ScanGeometry> = sc.scanners.iter().map(|s| s.geometry).collect();
     let duration = sc.duration_s;
-    let mut runner = Runner::new(sc).map_err(|e| TrackerError::Config(e.to_string()))?;
+    let mut runner =
+        Runner::new(sc).map_err(|e| TrackerError::config("lidar_people", e.to_string()))?;
     let mut server = ServerPipeline::new(fusion, tracker, cfg.frame_period_s);
     let mut queue: BinaryHeap<Reverse<(i64, u64, usize)>> = BinaryHeap::new();
     let mut pending: Vec<Option<DynamicScan>> = Vec::new();
@@ -284,7 +289,7 @@ where
     };
     while let Some(ev) = runner
         .next_event()
-        .map_err(|e| TrackerError::Config(e.to_string()))?
+        .map_err(|e| TrackerError::config("lidar_people", e.to_string()))?
     {
         match ev {
             RoomEvent::Scan(cs) => {
@@ -330,8 +335,9 @@ where
     // flush: everything arrives, then the last frames close at their deadline
     let end = run.gt.last().map_or(0, |g| g.t.0) + 1_000_000;
     if calib.is_some() {
-        return Err(TrackerError::Config(
-            "calibration = icp: the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)".into(),
+        return Err(TrackerError::config(
+            "lidar_people",
+            "calibration = icp: the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)",
         ));
     }
     deliver(&mut server, &mut queue, &mut pending, end, &mut run, None)?;
@@ -460,8 +466,9 @@ pub fn run_room_default(
     progress: &mut dyn FnMut(f64),
 ) -> Result<RoomRun, TrackerError> {
     if cfg.calibration == super::Calibration::Icp && !cfg.revealed_background {
-        return Err(TrackerError::Config(
-            "calibration = icp needs the long-term background b_n (revealed_background = true; the literal preset keeps none)".into(),
+        return Err(TrackerError::config(
+            "lidar_people",
+            "calibration = icp needs the long-term background b_n (revealed_background = true; the literal preset keeps none)",
         ));
     }
     // with `icp` the fusion only ever sees the rough poses, then the calibrated ones

@@ -202,7 +202,9 @@ pub struct LabelledPerson {
 /// Errors name the line: a missing or different header, a wrong column count, an unparseable
 /// or non-finite number.
 pub fn parse_legs_csv(text: &str) -> Result<Vec<LabelledPerson>, TrackerError> {
-    let bad = |line: usize, why: &str| TrackerError::Config(format!("legs csv line {line}: {why}"));
+    let bad = |line: usize, why: &str| {
+        TrackerError::config("lidar_people", format!("legs csv line {line}: {why}"))
+    };
     let mut lines = text.lines().enumerate();
     let header = lines
         .next()
