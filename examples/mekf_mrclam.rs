@@ -7,8 +7,8 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use quarry::core::{Gaussian, Pose2};
+use quarry::data::mrclam::load;
 use quarry::filter::{EgoCvModel, Ekf, Position3};
-use quarry::sim::mrclam::load;
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use quarry_sim::mrclam::{MrclamTexts, from_texts, parse_table};
+use quarry_data::mrclam::{MrclamTexts, from_texts, parse_table};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
