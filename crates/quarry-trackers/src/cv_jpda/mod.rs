@@ -8,7 +8,8 @@
 //!   (`Σ_i β_ij < 0.5`) starts a tentative track at the detection with zero velocity and
 //!   variance `birth_vel_sigma²`. With [`AssocMode::Jipda`] each track carries an existence
 //!   probability ψ (birth ψ₀, survival p_S per scan) and is confirmed/deleted by
-//!   [`ExistenceThresholds`]; with [`AssocMode::Jpda`] by M-of-N on "detected" = β_i0 < 0.5.
+//!   [`ExistenceThresholds`](quarry_assoc::lifecycle::ExistenceThresholds); with
+//!   [`AssocMode::Jpda`] by M-of-N on "detected" = β_i0 < 0.5.
 //!
 //! The state is `[x, y, vx, vy]`, measurements are positions.
 //!

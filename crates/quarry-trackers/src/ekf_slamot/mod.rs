@@ -19,7 +19,8 @@
 //!   Targets are updated one after the other with the β of the joint association (computed once
 //!   from the prediction) and their innovations re-linearised at the current state — the
 //!   standard sequential JPDA-EKF; the order is the slot order.
-//! - target initiation is the RBPF's ([`TargetInit`]): first epoch with n detections, or two-point.
+//! - target initiation is the RBPF's ([`TargetInit`](crate::slamot::TargetInit)): first epoch
+//!   with n detections, or two-point.
 //!
 //!
 //! The filter takes the RBPF's configuration ([`SlamotConfig`](crate::slamot::SlamotConfig),

@@ -31,7 +31,8 @@ pub struct TargetSlot {
 pub struct SlamotParticle<S> {
     /// Robot pose sample.
     pub pose: Pose2,
-    /// Landmark map (internal ids, see [`SlamotTracker::map_estimate`]).
+    /// Landmark map (internal ids, see
+    /// [`SlamotTracker::map_estimate`](super::SlamotTracker::map_estimate)).
     pub map: S,
     /// Target slots.
     pub targets: Vec<TargetSlot>,
