@@ -26,9 +26,7 @@
 //! ```
 
 mod config;
-/// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
 pub mod cv_jpda;
-/// EKF-SLAMOT: the joint-EKF baseline of paper 000 (its reference [8]).
 pub mod ekf_slamot;
 mod error;
 pub mod lidar_people;

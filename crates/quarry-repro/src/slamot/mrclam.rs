@@ -19,9 +19,9 @@ use crate::Result;
 pub struct MrclamResult {
     /// Robot position error per observation epoch (against Vicon).
     pub robot_err: Vec<f64>,
-    /// Epoch times [s].
+    /// Epoch times \[s\].
     pub epoch_t: Vec<f64>,
-    /// Mean landmark position error of the final map [m] over the landmarks seen.
+    /// Mean landmark position error of the final map \[m\] over the landmarks seen.
     pub map_err: f64,
     /// Landmarks in the final map.
     pub landmarks_mapped: usize,

@@ -87,7 +87,7 @@ pub struct SimRunResult {
     pub robot_err: Vec<f64>,
     /// Per true target: position error per epoch from the first target epoch (fixed assignment).
     pub target_err: Vec<Vec<f64>>,
-    /// Times [s] of the epochs of `robot_err`.
+    /// Times \[s\] of the epochs of `robot_err`.
     pub epoch_t: Vec<f64>,
     /// Whether, after t = 40 s, some target's error exceeded 3 m (swap or loss, E4).
     pub swap_or_loss: bool,

@@ -1,3 +1,5 @@
+//! Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
+//!
 //! A small stand-alone multi-target tracker: constant-velocity Kalman filter per track, χ²
 //! gating, JPDA or JIPDA association (quarry-assoc) and the PDA combined-innovation update
 //! (spec 000 §2.9), with track birth, confirmation and deletion.

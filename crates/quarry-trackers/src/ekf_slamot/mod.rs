@@ -1,4 +1,4 @@
-//! EKF-SLAMOT: the paper's baseline (its reference [8]) — one joint extended Kalman filter over
+//! EKF-SLAMOT: the paper's baseline (its reference \[8\]) — one joint extended Kalman filter over
 //! the robot pose, every landmark and every target, to compare against the Rao-Blackwellized
 //! [`SlamotTracker`](crate::slamot::SlamotTracker).
 //!

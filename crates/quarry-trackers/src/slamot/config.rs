@@ -41,9 +41,9 @@ pub enum TargetWeight {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum RobotMotion {
-    /// Bicycle with wheelbase B [m], control (V, G) (spec §2.3; the simulator's).
+    /// Bicycle with wheelbase B \[m\], control (V, G) (spec §2.3; the simulator's).
     Bicycle {
-        /// Wheelbase [m].
+        /// Wheelbase \[m\].
         wheelbase: f64,
     },
     /// Unicycle, control (v, ω) (MRCLAM odometry).
@@ -170,7 +170,7 @@ pub struct SlamotConfig {
     pub motion: RobotMotion,
     /// Control noise standard deviations of (V, G) or (v, ω) (paper: 0.3 m/s, 0.0872 rad; A13).
     pub control_noise: [f64; 2],
-    /// Measurement noise standard deviations (σ_r [m], σ_b [rad]) (spec §3.2: 0.1 m, 1°).
+    /// Measurement noise standard deviations (σ_r \[m\], σ_b \[rad\]) (spec §3.2: 0.1 m, 1°).
     pub meas_noise: [f64; 2],
     /// Target DWNA acceleration std σ_a [m/s²] (paper's "0.4", A14).
     pub target_sigma_a: f64,
@@ -210,11 +210,11 @@ pub struct SlamotConfig {
     /// Landmark store kind (used by the experiment drivers of quarry-repro and the CLI; the
     /// tracker's store is its type parameter).
     pub map_store: MapStoreKind,
-    /// Sensor range for targets [m]; a target predicted beyond it gets detection probability
+    /// Sensor range for targets \[m\]; a target predicted beyond it gets detection probability
     /// `p_detect_outside` (`None`: unlimited, the simulator's 360° sensor covers all targets).
     #[serde(with = "opt_f64")]
     pub sensor_range: Option<f64>,
-    /// Sensor field of view [rad] centred on the heading (2π: all around).
+    /// Sensor field of view \[rad\] centred on the heading (2π: all around).
     pub sensor_fov: f64,
     /// Detection probability of a target predicted outside range/field of view (MRCLAM's
     /// camera sees ~60°).

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 /// What the tracker sees at one control step: a frame without its truth.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct SlamotObservation {
-    /// Control step length [s].
+    /// Control step length \[s\].
     pub dt: f64,
     /// Odometry control ((V, G) for the bicycle, (v, ω) for the unicycle).
     pub odometry: (f64, f64),
