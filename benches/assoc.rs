@@ -3,7 +3,7 @@
 //! P0 = diag(0.25, 0.25, 0.05, 0.05) (quarry order [x, y, vx, vy]), CWNA q = 0.001, dt = 1 s,
 //! position measurements σ = 0.5 m, P_D 0.9, P_G 0.99 (χ²₂ gate 9.21), clutter density
 //! 10/3600 m⁻²; each scan = predict + gate + likelihoods + JPDA + PDA update
-//! (`quarry::trackers::jpda::JpdaTracker`, the stand-alone tracker).
+//! (`quarry::trackers::cv_jpda::JpdaTracker`, the stand-alone tracker).
 //!
 //! - `jpda_scan/known/n{3,10,20}`: the whole 100-scan sequence (divide by 100 for per scan).
 //! - `jpda_assoc_only/n{3,10,20}`: `Jpda::associate` alone on the 100 likelihood matrices of
@@ -26,7 +26,7 @@ use quarry::core::{
     Associator, Gaussian, LikelihoodMatrix, MultiTargetTracker, Stamp, TimeUs, TrackPrior,
     rng::seeded,
 };
-use quarry::trackers::jpda::{AssocMode, JpdaTracker, JpdaTrackerConfig};
+use quarry::trackers::cv_jpda::{AssocMode, JpdaTracker, JpdaTrackerConfig};
 use rand::Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 

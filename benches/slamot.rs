@@ -19,6 +19,7 @@ use std::hint::black_box;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nalgebra::{Matrix2, Vector2};
 use quarry::core::{Gaussian, LandmarkId, LandmarkStore, MultiTargetTracker, Pose2, Stamp};
+use quarry::repro::slamot::observation;
 use quarry::sim::slamot::{SlamotScenarioConfig, simulate};
 use quarry::trackers::ekf_slamot::EkfSlamot;
 use quarry::trackers::slamot::{
@@ -44,20 +45,12 @@ fn s0_at_40s(n: usize) -> (SlamotTracker<DefaultStore>, Vec<(Stamp, SlamotObserv
     let mut tr = SlamotTracker::new(cfg, Pose2::new(4.0, 54.0, 0.0), 7).unwrap();
     let k40 = (40.0 / scen.dt_control) as usize;
     for f in &frames[..k40] {
-        tr.step(
-            Stamp::from_frame(f.k, scen.dt_control),
-            &SlamotObservation::from(f),
-        )
-        .unwrap();
+        tr.step(Stamp::from_frame(f.k, scen.dt_control), &observation(f))
+            .unwrap();
     }
     let next: Vec<_> = frames[k40..k40 + scen.obs_every as usize]
         .iter()
-        .map(|f| {
-            (
-                Stamp::from_frame(f.k, scen.dt_control),
-                SlamotObservation::from(f),
-            )
-        })
+        .map(|f| (Stamp::from_frame(f.k, scen.dt_control), observation(f)))
         .collect();
     (tr, next)
 }
@@ -94,20 +87,12 @@ fn ekf(c: &mut Criterion) {
     let mut e = EkfSlamot::new(SlamotConfig::default(), Pose2::new(4.0, 54.0, 0.0)).unwrap();
     let k40 = (40.0 / scen.dt_control) as usize;
     for f in &frames[..k40] {
-        e.step(
-            Stamp::from_frame(f.k, scen.dt_control),
-            &SlamotObservation::from(f),
-        )
-        .unwrap();
+        e.step(Stamp::from_frame(f.k, scen.dt_control), &observation(f))
+            .unwrap();
     }
     let next: Vec<_> = frames[k40..k40 + scen.obs_every as usize]
         .iter()
-        .map(|f| {
-            (
-                Stamp::from_frame(f.k, scen.dt_control),
-                SlamotObservation::from(f),
-            )
-        })
+        .map(|f| (Stamp::from_frame(f.k, scen.dt_control), observation(f)))
         .collect();
     let mut g = c.benchmark_group("slamot_ekf");
     g.sample_size(20);

@@ -5,9 +5,9 @@
 //! Run: `cargo run --release --example ekf_slamot`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use quarry::repro::slamot::{filter_seed, mean_var, run_simulated, run_simulated_ekf};
 use quarry::sim::slamot::SlamotScenarioConfig;
-use quarry::trackers::ekf_slamot::run_simulated_ekf;
-use quarry::trackers::slamot::{SlamotConfig, filter_seed, mean_var, run_simulated};
+use quarry::trackers::slamot::SlamotConfig;
 
 fn main() {
     let scenario = SlamotScenarioConfig::s1();

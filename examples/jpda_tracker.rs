@@ -1,4 +1,4 @@
-//! The stand-alone JPDA / JIPDA tracker (`quarry::trackers::jpda`) on the shared
+//! The stand-alone JPDA / JIPDA tracker (`quarry::trackers::cv_jpda`) on the shared
 //! `bench-data/jpda_n{3,10,20}_meas.csv` scenarios (100 scans, P_D 0.9, Poisson(10) clutter).
 //!
 //! Two runs per scenario:
@@ -15,7 +15,7 @@
 use nalgebra::{DMatrix, Matrix4, Vector4};
 use quarry::assoc::assign::hungarian;
 use quarry::core::{Gaussian, MultiTargetTracker, Stamp, TimeUs};
-use quarry::trackers::jpda::{AssocMode, JpdaTracker, JpdaTrackerConfig};
+use quarry::trackers::cv_jpda::{AssocMode, JpdaTracker, JpdaTrackerConfig};
 use std::path::{Path, PathBuf};
 
 fn data_dir() -> Option<PathBuf> {

@@ -7,8 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry::core::{MultiTargetTracker, Pose2, Stamp};
+use quarry::repro::slamot::observation;
 use quarry::sim::slamot::{SlamotScenarioConfig, simulate};
-use quarry::trackers::slamot::{SlamotConfig, SlamotObservation, SlamotTracker};
+use quarry::trackers::slamot::{SlamotConfig, SlamotTracker};
 
 fn main() {
     let scenario = SlamotScenarioConfig::s0();
@@ -23,9 +24,7 @@ fn main() {
     let mut reports = Vec::new();
     for f in &frames {
         let stamp = Stamp::from_frame(f.k, scenario.dt_control);
-        reports = tracker
-            .step(stamp, &SlamotObservation::from(f))
-            .expect("step");
+        reports = tracker.step(stamp, &observation(f)).expect("step");
     }
     let last = frames.last().expect("frames");
     let est = tracker.pose_estimate();

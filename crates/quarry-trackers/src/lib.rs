@@ -26,11 +26,9 @@
 //! ```
 
 mod config;
-/// EKF-SLAMOT: the joint-EKF baseline of paper 000 (its reference [8]).
+pub mod cv_jpda;
 pub mod ekf_slamot;
 mod error;
-/// Stand-alone CV-Kalman + JPDA/JIPDA multi-target tracker (quarry-assoc's reference tracker).
-pub mod jpda;
 pub mod lidar_people;
 pub mod rgbd_person;
 pub mod slamot;

@@ -7,16 +7,56 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand, ValueEnum};
 use plotters::prelude::*;
-use quarry_sim::slamot::SlamotScenarioConfig;
-use quarry_trackers::ekf_slamot::run_simulated_ekf;
-use quarry_trackers::slamot::{
-    AssociationMode, SimRunResult, SlamotConfig, TargetWeight, filter_seed, mean_var,
-    mrclam_config, run_mrclam, run_simulated,
+use quarry_repro::slamot::{
+    SimRunResult, filter_seed, mean_var, run_mrclam, run_simulated, run_simulated_ekf,
 };
+use quarry_sim::slamot::SlamotScenarioConfig;
+use quarry_trackers::slamot::{AssociationMode, Preset, SlamotConfig, TargetWeight};
+use quarry_trackers::{TrackerConfig, TrackerError};
 use serde::Serialize;
 
+use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, Table};
 use crate::progress;
+
+/// What `quarry slamot` refuses before running anything.
+#[derive(Debug)]
+pub enum SlamotCmdError {
+    /// Flags that do not go together, or a count that must be positive.
+    Usage(&'static str),
+    /// A file or directory could not be written.
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+impl std::fmt::Display for SlamotCmdError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Usage(m) => f.write_str(m),
+            Self::Io { path, .. } => write!(f, "cannot write {}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for SlamotCmdError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Usage(_) => None,
+            Self::Io { source, .. } => Some(source),
+        }
+    }
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SlamotCmdError + '_ {
+    move |source| SlamotCmdError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
 
 /// The paper's one-run numbers (N = 50): robot, targets 1..3, (mean, variance).
 pub const PAPER_ROBOT: (f64, f64) = (0.452, 0.117);
@@ -71,6 +111,17 @@ With --mrclam DIR --robot K it reads a UTIAS MRCLAM dataset: robot K does SLAM o
 landmarks (known barcodes) and tracks the other four robots WITHOUT their barcodes (JIPDA with \
 births and deaths); scored against Vicon.
 
+Configuration: the filter's configuration is a preset (--preset paper|s1|mrclam; `quarry \
+slamot --help` lists them) with an optional TOML file laid over it (--config FILE.toml: keys \
+missing from the file keep the preset's values, unknown keys are errors; see \
+quarry_trackers::slamot::SlamotConfig for the keys). Without --preset the preset is the \
+--config file's `preset` key if it has one, else the one the run implies: --scenario s0 -> \
+paper, --scenario s1 -> s1, --mrclam -> mrclam (so `--scenario s1` alone keeps meaning the S1 \
+configuration). --preset chooses only the filter's configuration, --scenario only the \
+simulated world. --particles, --mode and --eq11 are applied on top of that configuration when \
+given (without them the configuration's values rule; every preset has N = 50 and mode jpda, \
+mrclam jipda); --mrclam always uses JIPDA with births and deaths.
+
 JSON (--json): {\"robot_err_mean\", \"robot_err_var\", \"target_err_mean\": [..], \
 \"target_err_var\": [..], \"losses\", \"ms_per_step\", \"runs\", \"particles\", \"mode\", \
 \"scenario\", \"filter\", \"paper\"}; with --mrclam also \"map_err\", \"ospa\", \"assoc_accuracy\".
@@ -82,6 +133,8 @@ dots; robot black, targets red/green/blue; no text).
 EXAMPLES:
   quarry slamot --runs 20 --particles 50 --json
   quarry slamot --mode paper --scenario s1 --runs 20
+  quarry slamot --scenario s1 --preset paper --runs 20   (S1 world, S0 filter)
+  quarry slamot --preset s1 --config my.toml --json
   quarry slamot --filter ekf --runs 20 --json
   quarry slamot --mrclam ../shared/data/mrclam-6 --robot 1 --out out/
   quarry slamot sweep --particles 20,50,100,200 --runs 20 --out out/"
@@ -90,25 +143,30 @@ pub struct SlamotArgs {
     /// Error-vs-particles sweep (Figs. 3 and 4).
     #[command(subcommand)]
     pub sub: Option<SlamotSub>,
-    /// Number of particles N.
-    #[arg(long, default_value_t = 50)]
-    pub particles: usize,
+    /// The filter's configuration: --preset and --config (see above).
+    #[command(flatten)]
+    pub cfg: ConfigArgs<Preset>,
+    /// Number of particles N, over the configuration's (every preset: 50).
+    #[arg(long)]
+    pub particles: Option<usize>,
     /// Monte-Carlo runs (truth seeds seed, seed+1, ...).
     #[arg(long, default_value_t = 1)]
     pub runs: u64,
     /// First truth seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Association mode.
-    #[arg(long, value_enum, default_value_t = ModeArg::Jpda)]
-    pub mode: ModeArg,
-    /// Use the paper's eq. (11) target weight (ablation; default: the mode's own).
+    /// Association mode, over the configuration's (paper, s1: jpda).
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
+    /// Use the paper's eq. (11) target weight (ablation; default: the configuration's, the
+    /// mode's own in every preset).
     #[arg(long)]
     pub eq11: bool,
     /// Filter: the RBPF (default) or the joint-EKF baseline.
     #[arg(long, value_enum, default_value_t = FilterArg::Rbpf)]
     pub filter: FilterArg,
-    /// Built-in scenario.
+    /// Built-in scenario (s1 also implies the s1 preset when neither --preset nor a `preset`
+    /// key in --config says otherwise).
     #[arg(long, value_enum, default_value_t = ScenarioArg::S0)]
     pub scenario: ScenarioArg,
     /// MRCLAM dataset directory (instead of the simulation).
@@ -132,6 +190,10 @@ pub enum SlamotSub {
 /// Arguments of `quarry slamot sweep`.
 #[derive(Debug, Args)]
 pub struct SweepArgs {
+    /// The filter's configuration (as for `quarry slamot`; the particle counts are the
+    /// sweep's).
+    #[command(flatten)]
+    pub cfg: ConfigArgs<Preset>,
     /// Particle counts, comma separated.
     #[arg(
         long,
@@ -145,10 +207,10 @@ pub struct SweepArgs {
     /// First truth seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Association mode.
-    #[arg(long, value_enum, default_value_t = ModeArg::Jpda)]
-    pub mode: ModeArg,
-    /// Built-in scenario.
+    /// Association mode, over the configuration's (paper, s1: jpda).
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
+    /// Built-in scenario (s1 also implies the s1 preset, as for `quarry slamot`).
     #[arg(long, value_enum, default_value_t = ScenarioArg::S0)]
     pub scenario: ScenarioArg,
     /// Output directory for sweep.csv, fig3.png and fig4.png.
@@ -218,27 +280,86 @@ fn mode_of(m: ModeArg) -> AssociationMode {
     }
 }
 
-/// The filter configuration for a built-in scenario (S1: [`SlamotConfig::s1`], the filter
-/// knows P_D 0.9 and the clutter rate, spec §4.3 E6, and initiates targets from two points).
+/// The preset a run implies when neither --preset nor the --config file names one: the
+/// scenario's (S1: [`SlamotConfig::s1`], the filter knows P_D 0.9 and the clutter rate, spec
+/// §4.3 E6, and initiates targets from two points), or `mrclam` for MRCLAM runs.
+fn implied_preset(scenario: ScenarioArg, mrclam: bool) -> Preset {
+    match (mrclam, scenario) {
+        (true, _) => Preset::Mrclam,
+        (false, ScenarioArg::S0) => Preset::Paper,
+        (false, ScenarioArg::S1) => Preset::S1,
+    }
+}
+
+/// Whether the TOML file at `path` has a top-level `preset` key (a file that cannot be read or
+/// parsed has none here: loading it reports the error).
+fn file_names_preset(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.len() <= 1 << 20)
+        && std::fs::read_to_string(path)
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .is_some_and(|t| t.contains_key("preset"))
+}
+
+/// The configuration of --preset / --config, validated once; the base preset is --preset, else
+/// the file's `preset` key, else `implied`.
+pub fn load_config(
+    args: &ConfigArgs<Preset>,
+    implied: Preset,
+) -> Result<SlamotConfig, TrackerError> {
+    let file_preset = args.config.as_deref().is_some_and(file_names_preset);
+    if args.preset.is_some() || file_preset {
+        return args.load();
+    }
+    ConfigArgs {
+        preset: Some(implied),
+        config: args.config.clone(),
+    }
+    .load()
+}
+
+/// The filter configuration for a built-in scenario: `base` with the command-line overrides
+/// (validated again when overrides were given), and the scenario.
 pub fn sim_config(
-    particles: usize,
-    mode: ModeArg,
+    base: SlamotConfig,
+    particles: Option<usize>,
+    mode: Option<ModeArg>,
     scenario: ScenarioArg,
     eq11: bool,
-) -> (SlamotConfig, SlamotScenarioConfig) {
-    let (base, scen) = match scenario {
-        ScenarioArg::S0 => (SlamotConfig::default(), SlamotScenarioConfig::s0()),
-        ScenarioArg::S1 => (SlamotConfig::s1(), SlamotScenarioConfig::s1()),
+) -> Result<(SlamotConfig, SlamotScenarioConfig), TrackerError> {
+    let scen = match scenario {
+        ScenarioArg::S0 => SlamotScenarioConfig::s0(),
+        ScenarioArg::S1 => SlamotScenarioConfig::s1(),
     };
-    let mut cfg = SlamotConfig {
-        particles,
-        association: mode_of(mode),
-        ..base
-    };
+    let cfg = overrides(base, particles, mode, eq11)?;
+    Ok((cfg, scen))
+}
+
+/// `--particles`, `--mode` and `--eq11` over a configuration.
+fn overrides(
+    mut cfg: SlamotConfig,
+    particles: Option<usize>,
+    mode: Option<ModeArg>,
+    eq11: bool,
+) -> Result<SlamotConfig, TrackerError> {
+    let any = particles.is_some() || mode.is_some() || eq11;
+    if let Some(n) = particles {
+        cfg.particles = n;
+    }
+    if let Some(m) = mode {
+        cfg.association = mode_of(m);
+    }
     if eq11 {
         cfg.target_weight = TargetWeight::PaperEq11;
     }
-    (cfg, scen)
+    if any {
+        cfg.validate()?;
+    }
+    Ok(cfg)
+}
+
+fn mode_name(m: AssociationMode) -> String {
+    format!("{m:?}").to_lowercase()
 }
 
 fn summarise(seed: u64, r: &SimRunResult) -> RunSummary {
@@ -266,23 +387,26 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
     if let Some(SlamotSub::Sweep(s)) = &args.sub {
         return sweep(s, out);
     }
-    if args.particles == 0 || args.runs == 0 {
-        return Err("--particles and --runs must be > 0".into());
+    if args.particles == Some(0) || args.runs == 0 {
+        return Err(SlamotCmdError::Usage("--particles and --runs must be > 0").into());
     }
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     }
+    let base = load_config(
+        &args.cfg,
+        implied_preset(args.scenario, args.mrclam.is_some()),
+    )?;
     if let Some(dir) = &args.mrclam {
-        return run_mrclam_cmd(args, dir, out);
+        return run_mrclam_cmd(args, base, dir, out);
     }
-    let (cfg, scen) = sim_config(args.particles, args.mode, args.scenario, args.eq11);
+    let (cfg, scen) = sim_config(base, args.particles, args.mode, args.scenario, args.eq11)?;
     let pb = progress::bar(out, args.runs, "slamot");
     let mut results = Vec::new();
     for i in 0..args.runs {
         let r = args.seed + i;
         let res = match args.filter {
-            FilterArg::Rbpf => run_simulated(&cfg, &scen, r, filter_seed(r, args.particles))?,
+            FilterArg::Rbpf => run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles))?,
             FilterArg::Ekf => run_simulated_ekf(&cfg, &scen, r)?,
         };
         if let Some(dir) = &args.out {
@@ -309,8 +433,8 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
     let report = Report {
         scenario: format!("{:?}", args.scenario).to_lowercase(),
         filter: format!("{:?}", args.filter).to_lowercase(),
-        mode: format!("{:?}", args.mode).to_lowercase(),
-        particles: args.particles,
+        mode: mode_name(cfg.association),
+        particles: cfg.particles,
         runs: args.runs,
         robot_err_mean: avg(per_run.iter().map(|r| r.robot_err_mean)),
         robot_err_var: avg(per_run.iter().map(|r| r.robot_err_var)),
@@ -395,13 +519,13 @@ fn write_sim_csv(dir: &Path, r: u64, res: &SimRunResult) -> Result<(), CmdError>
         s.push('\n');
     }
     let p = dir.join(format!("trajectories_run{r}.csv"));
-    std::fs::write(&p, s).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+    std::fs::write(&p, s).map_err(io_err(&p))?;
     let mut m = String::from("landmark,x,y\n");
     for (id, xy) in &res.map {
         let _ = writeln!(m, "{},{:.4},{:.4}", id.0, xy[0], xy[1]);
     }
     let p = dir.join(format!("map_run{r}.csv"));
-    std::fs::write(&p, m).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+    std::fs::write(&p, m).map_err(io_err(&p))?;
     Ok(())
 }
 
@@ -533,16 +657,20 @@ struct SweepReport {
 
 fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
     if args.particles.is_empty() || args.particles.contains(&0) || args.runs == 0 {
-        return Err("--particles must be a list of counts > 0 and --runs > 0".into());
+        return Err(SlamotCmdError::Usage(
+            "--particles must be a list of counts > 0 and --runs > 0",
+        )
+        .into());
     }
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     }
+    let base = load_config(&args.cfg, implied_preset(args.scenario, false))?;
+    let mode = mode_name(overrides(base.clone(), None, args.mode, false)?.association);
     let pb = progress::bar(out, args.particles.len() as u64 * args.runs, "sweep");
     let mut points = Vec::new();
     for &n in &args.particles {
-        let (cfg, scen) = sim_config(n, args.mode, args.scenario, false);
+        let (cfg, scen) = sim_config(base.clone(), Some(n), args.mode, args.scenario, false)?;
         let mut runs = Vec::new();
         for i in 0..args.runs {
             let r = args.seed + i;
@@ -590,7 +718,8 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
                 p.ms_per_step
             );
         }
-        std::fs::write(dir.join("sweep.csv"), s)?;
+        let p = dir.join("sweep.csv");
+        std::fs::write(&p, s).map_err(io_err(&p))?;
         plot_sweep(
             &dir.join("fig3.png"),
             &[points
@@ -626,7 +755,7 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
     }
     let report = SweepReport {
         scenario: format!("{:?}", args.scenario).to_lowercase(),
-        mode: format!("{:?}", args.mode).to_lowercase(),
+        mode,
         runs: args.runs,
         points,
     };
@@ -720,29 +849,30 @@ fn plot_sweep(path: &Path, series: &[Vec<(f64, f64)>], titles: &[&str]) -> Resul
     save_png(path, buf, w, h)
 }
 
-fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
+fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Output) -> CmdResult {
     if args.filter == FilterArg::Ekf {
-        return Err(
+        return Err(SlamotCmdError::Usage(
             "--filter ekf needs a known target count; MRCLAM runs use JIPDA births and \
-                    deaths (the number of robots in view varies): use the RBPF"
-                .into(),
-        );
+             deaths (the number of robots in view varies): use the RBPF",
+        )
+        .into());
     }
     let run = quarry_data::mrclam::load(dir, args.robot)?;
-    let mut cfg = mrclam_config(args.particles);
-    if args.mode != ModeArg::Jipda {
+    if args.mode.is_some_and(|m| m != ModeArg::Jipda) {
         eprintln!(
             "note: MRCLAM uses JIPDA with births and deaths (the number of robots in view varies)"
         );
     }
+    let mut cfg = overrides(base, args.particles, None, args.eq11)?;
     cfg.association = AssociationMode::Jipda;
+    cfg.validate()?;
     let pb = progress::bar(out, args.runs, "mrclam");
     let mut per_run = Vec::new();
     let mut extras = Vec::new();
     let mut last = None;
     for i in 0..args.runs {
         let r = args.seed + i;
-        let res = run_mrclam(&cfg, &run, filter_seed(r, args.particles))?;
+        let res = run_mrclam(&cfg, &run, filter_seed(r, cfg.particles))?;
         let (rm, rv) = mean_var(&res.robot_err);
         let (tm, tv): (Vec<f64>, Vec<f64>) = res.target_err.iter().map(|e| mean_var(e)).unzip();
         per_run.push(RunSummary {
@@ -770,15 +900,14 @@ fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
                 res.epoch_t[k], a[0], a[1], a[2], b[0], b[1], b[2]
             );
         }
-        std::fs::write(
-            d.join(format!("mrclam_robot{}_trajectory.csv", args.robot)),
-            s,
-        )?;
+        let p = d.join(format!("mrclam_robot{}_trajectory.csv", args.robot));
+        std::fs::write(&p, s).map_err(io_err(&p))?;
         let mut m = String::from("landmark_subject,x,y\n");
         for (id, xy) in &res.map {
             let _ = writeln!(m, "{},{:.4},{:.4}", id.0 + 6, xy[0], xy[1]);
         }
-        std::fs::write(d.join(format!("mrclam_robot{}_map.csv", args.robot)), m)?;
+        let p = d.join(format!("mrclam_robot{}_map.csv", args.robot));
+        std::fs::write(&p, m).map_err(io_err(&p))?;
     }
     let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
     let report = Report {
@@ -788,7 +917,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
         ),
         filter: "rbpf".into(),
         mode: "jipda".into(),
-        particles: args.particles,
+        particles: cfg.particles,
         runs: args.runs,
         robot_err_mean: avg(per_run.iter().map(|r| r.robot_err_mean)),
         robot_err_var: avg(per_run.iter().map(|r| r.robot_err_var)),
@@ -820,7 +949,13 @@ fn run_mrclam_cmd(args: &SlamotArgs, dir: &Path, out: &Output) -> CmdResult {
 
 /// The `quarry demo` row: S0, one run, N = 50, robot and target errors next to the paper's.
 pub fn demo_rows(seed: u64) -> Result<Vec<super::demo::Row>, CmdError> {
-    let (cfg, scen) = sim_config(50, ModeArg::Jpda, ScenarioArg::S0, false);
+    let (cfg, scen) = sim_config(
+        SlamotConfig::preset(Preset::Paper),
+        Some(50),
+        Some(ModeArg::Jpda),
+        ScenarioArg::S0,
+        false,
+    )?;
     let res = run_simulated(&cfg, &scen, seed, filter_seed(seed, 50))?;
     let s = summarise(seed, &res);
     let scenario = "S0 (spec 000), N 50, 1 run".to_string();
@@ -843,4 +978,76 @@ pub fn demo_rows(seed: u64) -> Result<Vec<super::demo::Row>, CmdError> {
         });
     }
     Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(preset: Option<Preset>, config: Option<PathBuf>) -> ConfigArgs<Preset> {
+        ConfigArgs { preset, config }
+    }
+
+    #[test]
+    fn the_run_implies_the_preset_unless_told_otherwise() {
+        assert_eq!(implied_preset(ScenarioArg::S0, false), Preset::Paper);
+        assert_eq!(implied_preset(ScenarioArg::S1, false), Preset::S1);
+        assert_eq!(implied_preset(ScenarioArg::S1, true), Preset::Mrclam);
+        // --scenario s1 alone: the S1 configuration, as before --preset existed
+        let c = load_config(&args(None, None), Preset::S1).unwrap();
+        assert_eq!(c, SlamotConfig::s1());
+        // --preset wins over the scenario
+        let c = load_config(&args(Some(Preset::Paper), None), Preset::S1).unwrap();
+        assert_eq!(c, SlamotConfig::default());
+        let dir = std::env::temp_dir().join(format!("quarry-slamot-cli-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // a file without a preset key lies over the implied preset
+        let f = dir.join("n.toml");
+        std::fs::write(&f, "particles = 20\n").unwrap();
+        let c = load_config(&args(None, Some(f.clone())), Preset::S1).unwrap();
+        assert_eq!(
+            c,
+            SlamotConfig {
+                particles: 20,
+                ..SlamotConfig::s1()
+            }
+        );
+        // the file's preset key wins over the implied one
+        let g = dir.join("p.toml");
+        std::fs::write(&g, "preset = \"paper\"\nparticles = 30\n").unwrap();
+        let c = load_config(&args(None, Some(g)), Preset::S1).unwrap();
+        assert_eq!(c.particles, 30);
+        assert_eq!(c.p_detect, SlamotConfig::default().p_detect);
+        // a typo is an error naming the key
+        let t = dir.join("t.toml");
+        std::fs::write(&t, "particels = 20\n").unwrap();
+        let e = load_config(&args(None, Some(t)), Preset::Paper).unwrap_err();
+        assert!(e.to_string().contains("particels"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn flags_apply_over_the_configuration() {
+        let (c, _) = sim_config(SlamotConfig::s1(), None, None, ScenarioArg::S1, false).unwrap();
+        assert_eq!(c, SlamotConfig::s1());
+        let (c, _) = sim_config(
+            SlamotConfig::s1(),
+            Some(20),
+            Some(ModeArg::Paper),
+            ScenarioArg::S1,
+            true,
+        )
+        .unwrap();
+        assert_eq!(
+            c,
+            SlamotConfig {
+                particles: 20,
+                association: AssociationMode::Paper,
+                target_weight: TargetWeight::PaperEq11,
+                ..SlamotConfig::s1()
+            }
+        );
+        // an override that breaks a rule of validate() is an error
+        assert!(overrides(SlamotConfig::mrclam(), None, Some(ModeArg::Jpda), false).is_err());
+    }
 }

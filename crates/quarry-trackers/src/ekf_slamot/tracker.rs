@@ -1,47 +1,5 @@
-//! EKF-SLAMOT: the paper's baseline (its reference [8]) — one joint extended Kalman filter over
-//! the robot pose, every landmark and every target, to compare against the Rao-Blackwellized
-//! [`SlamotTracker`](crate::slamot::SlamotTracker).
-//!
-//! The state is `x = [x_R (3) | m_1 (2) … m_M (2) | s_1 (4) … s_n (4)]`, blocks appended in the
-//! order they are first seen, with one dense covariance `P` of dimension `D = 3 + 2M + 4n`, held
-//! in a [`faer::Mat`] (the "large dynamic covariance"). Every cost is O(D) or O(D²):
-//!
-//! - control step: robot prediction through the motion model's Jacobians; only the robot rows
-//!   and columns of `P` change (`P_RR ← F P_RR Fᵀ + G Q_u Gᵀ`, `P_R· ← F P_R·`), O(D);
-//! - observation epoch, landmarks: a new landmark is appended with its cross-covariance
-//!   `G_x P_R·` (inverse range-bearing model); a known one is a sequential EKF update with the
-//!   sparse `H = [H_x | … H_p …]`, `K = P Hᵀ S⁻¹`, `P ← P − K S Kᵀ` (rank 2, O(D²));
-//! - targets: CV prediction of every target block (DWNA σ_a, as the RBPF), then the same
-//!   association as the RBPF (quarry-assoc's `Jpda` / `PaperLikelihood` / `Jipda` on the gated
-//!   likelihood matrix built from the joint predictive `S_l = H_l P H_lᵀ + R`, which includes the
-//!   robot–target correlation), then the PDA combined-innovation update of each target on the
-//!   joint state: `x ← x + K ν̄`, `P ← P − K ((1 − β₀) S − P̃) Kᵀ`, `P̃ = Σ_j β_j ν_j ν_jᵀ − ν̄ ν̄ᵀ`.
-//!   Targets are updated one after the other with the β of the joint association (computed once
-//!   from the prediction) and their innovations re-linearised at the current state — the
-//!   standard sequential JPDA-EKF; the order is the slot order.
-//! - target initiation is the RBPF's ([`TargetInit`]): first epoch with n detections, or two-point.
-//!
-//! The filter is deterministic (no random numbers): one run per truth seed.
-//!
-//! ```
-//! use quarry_core::{MultiTargetTracker, Stamp};
-//! use quarry_sim::slamot::{simulate, SlamotScenarioConfig};
-//! use quarry_trackers::ekf_slamot::EkfSlamot;
-//! use quarry_trackers::slamot::{SlamotConfig, SlamotObservation};
-//! let mut scen = SlamotScenarioConfig::s0();
-//! scen.duration = 4.0;
-//! let frames = simulate(&scen, 1)?;
-//! let mut ekf = EkfSlamot::new(SlamotConfig::default(), quarry_core::Pose2::new(4.0, 54.0, 0.0))?;
-//! let mut reports = Vec::new();
-//! for f in &frames {
-//!     reports = ekf.step(Stamp::from_frame(f.k, scen.dt_control), &SlamotObservation::from(f))?;
-//! }
-//! assert_eq!(reports.len(), 3);
-//! assert_eq!(ekf.dim(), 3 + 2 * ekf.map_estimate().len() + 4 * 3);
-//! let p = ekf.pose_estimate();
-//! assert!((p.x - frames.last().unwrap().truth.robot.x).abs() < 1.0);
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
+//! [`EkfSlamot`]: the joint state, its dense covariance and the control, landmark and target
+//! steps (see the [module docs](super)).
 
 use std::collections::HashMap;
 
@@ -57,9 +15,10 @@ use quarry_core::{
 use quarry_filter::{Bicycle, ConstantVelocity2, RangeBearing, Unicycle};
 
 use crate::slamot::{
-    AssociationMode, MapPoints, RobotMotion, SimRunResult, SlamotConfig, SlamotError,
-    SlamotObservation, TargetInit, score_frames, two_point_pairs,
+    AssociationMode, MapPoints, RobotMotion, SlamotConfig, SlamotObservation, TargetInit,
+    two_point_pairs,
 };
+use crate::{TrackerConfig, TrackerError};
 
 /// A point from the inverse model: mean, covariance from the sensor noise, `∂p/∂x_R`.
 type PointInit = (Vector2<f64>, Matrix2<f64>, Matrix2x3<f64>);
@@ -76,7 +35,7 @@ struct TargetBlock {
     existence: f64,
 }
 
-/// The joint-EKF SLAMOT baseline (see the [module docs](self)).
+/// The joint-EKF SLAMOT baseline (see the [module docs](super)).
 #[derive(Debug, Clone)]
 pub struct EkfSlamot {
     cfg: SlamotConfig,
@@ -105,12 +64,12 @@ impl EkfSlamot {
     /// RBPF). `cfg` is the RBPF's configuration; the particle fields (`particles`, `resampler`,
     /// `readout`, `map_store`, `target_weight`) are ignored. Track management (births/deaths)
     /// is not supported: the target count must be known.
-    pub fn new(cfg: SlamotConfig, initial: Pose2) -> Result<Self, SlamotError> {
+    pub fn new(cfg: SlamotConfig, initial: Pose2) -> Result<Self, TrackerError> {
         cfg.validate()?;
         if cfg.track_management {
-            return Err(SlamotError::Config(
-                "the EKF-SLAMOT baseline needs a known target count (track_management = false)"
-                    .into(),
+            return Err(TrackerError::config(
+                SlamotConfig::NAME,
+                "the EKF-SLAMOT baseline needs a known target count (track_management = false)",
             ));
         }
         if !initial.is_finite() {
@@ -213,7 +172,7 @@ impl EkfSlamot {
         }
     }
 
-    fn predict_robot(&mut self, u: (f64, f64), dt: f64) -> Result<(), SlamotError> {
+    fn predict_robot(&mut self, u: (f64, f64), dt: f64) -> Result<(), TrackerError> {
         let [sv, sg] = self.cfg.control_noise;
         let x = Vector3::new(self.x[0], self.x[1], self.x[2]);
         let (xn, f, q) = match self.cfg.motion {
@@ -243,7 +202,7 @@ impl EkfSlamot {
         Ok(())
     }
 
-    fn predict_point(&self, o: usize) -> Result<PointPrediction, SlamotError> {
+    fn predict_point(&self, o: usize) -> Result<PointPrediction, TrackerError> {
         let rb = RangeBearing {
             sensor: self.pose_estimate(),
             r: self.r(),
@@ -313,7 +272,7 @@ impl EkfSlamot {
         s: &Matrix2<f64>,
         nu: &Vector2<f64>,
         m: &Matrix2<f64>,
-    ) -> Result<(), SlamotError> {
+    ) -> Result<(), TrackerError> {
         let si = s.try_inverse().ok_or(CoreError::NotPositiveDefinite {
             what: "EKF-SLAMOT innovation covariance",
         })?;
@@ -372,7 +331,7 @@ impl EkfSlamot {
         d
     }
 
-    fn inverse_point(&self, z: &Vector2<f64>) -> Result<PointInit, SlamotError> {
+    fn inverse_point(&self, z: &Vector2<f64>) -> Result<PointInit, TrackerError> {
         if z[0] <= 0.0 {
             return Err(CoreError::invalid("range", format!("{} (must be > 0)", z[0])).into());
         }
@@ -399,7 +358,7 @@ impl EkfSlamot {
     fn select_init(
         &mut self,
         targets: &[Vector2<f64>],
-    ) -> Result<Vec<(usize, Option<Partner>)>, SlamotError> {
+    ) -> Result<Vec<(usize, Option<Partner>)>, TrackerError> {
         let n = self.cfg.n_targets;
         match self.cfg.target_init {
             TargetInit::FirstN => Ok(if targets.len() == n {
@@ -429,7 +388,7 @@ impl EkfSlamot {
         }
     }
 
-    fn epoch(&mut self, obs: &SlamotObservation) -> Result<(), SlamotError> {
+    fn epoch(&mut self, obs: &SlamotObservation) -> Result<(), TrackerError> {
         obs.check_detections()?;
         self.epochs += 1;
         let r = self.r();
@@ -619,7 +578,7 @@ impl EkfSlamot {
 
 impl MultiTargetTracker for EkfSlamot {
     type Input = SlamotObservation;
-    type Error = SlamotError;
+    type Error = TrackerError;
 
     /// One control step: robot prediction, and at observation epochs the landmark and target
     /// updates.
@@ -627,7 +586,7 @@ impl MultiTargetTracker for EkfSlamot {
         &mut self,
         stamp: Stamp,
         obs: &SlamotObservation,
-    ) -> Result<Vec<TrackReport>, SlamotError> {
+    ) -> Result<Vec<TrackReport>, TrackerError> {
         let (v, g) = obs.odometry;
         if !(v.is_finite() && g.is_finite()) {
             return Err(CoreError::NonFinite { what: "odometry" }.into());
@@ -646,87 +605,10 @@ impl MultiTargetTracker for EkfSlamot {
     }
 }
 
-/// Simulates scenario `scen` with truth seed `truth_seed` and runs the EKF-SLAMOT baseline on
-/// it, scored exactly as [`run_simulated`](crate::slamot::run_simulated) scores the RBPF
-/// (`resample_rate` is 0).
-pub fn run_simulated_ekf(
-    cfg: &SlamotConfig,
-    scen: &quarry_sim::slamot::SlamotScenarioConfig,
-    truth_seed: u64,
-) -> Result<SimRunResult, SlamotError> {
-    let frames = quarry_sim::slamot::simulate(scen, truth_seed)
-        .map_err(|e| SlamotError::Config(format!("scenario: {e}")))?;
-    let [x, y, th] = scen.robot_init;
-    let mut ekf = EkfSlamot::new(cfg.clone(), Pose2::new(x, y, th))?;
-    let mut res = score_frames(&frames, scen.dt_control, |stamp, obs| {
-        let reps = ekf.step(stamp, obs)?;
-        Ok((ekf.pose_estimate(), reps))
-    })?;
-    res.map = ekf.map_estimate();
-    Ok(res)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::slamot::{SlamotTracker, mean_var};
-    use quarry_sim::slamot::SlamotScenarioConfig;
-
-    #[test]
-    fn covariance_stays_symmetric_and_pd() {
-        let mut scen = SlamotScenarioConfig::s0();
-        scen.duration = 10.0;
-        let frames = quarry_sim::slamot::simulate(&scen, 2).unwrap();
-        let mut ekf = EkfSlamot::new(SlamotConfig::default(), Pose2::new(4.0, 54.0, 0.0)).unwrap();
-        for f in &frames {
-            ekf.step(Stamp::from_frame(f.k, 0.025), &SlamotObservation::from(f))
-                .unwrap();
-        }
-        let d = ekf.dim();
-        assert_eq!(d, 3 + 2 * ekf.map_estimate().len() + 12);
-        let p = DMatrix::from_fn(d, d, |i, j| ekf.covariance()[(i, j)]);
-        assert!((&p - p.transpose()).amax() < 1e-12 * p.amax());
-        assert!(p.cholesky().is_some(), "P not positive definite");
-    }
-
-    /// With zero control noise and (almost) noise-free sensing the joint EKF is the truth.
-    #[test]
-    fn near_noise_free_is_exact() {
-        let mut scen = SlamotScenarioConfig::s0();
-        scen.duration = 20.0;
-        scen.sigma_v = 0.0;
-        scen.sigma_g = 0.0;
-        scen.sigma_r = 1e-4;
-        scen.sigma_b = 1e-5;
-        let cfg = SlamotConfig {
-            control_noise: [1e-4, 1e-5],
-            meas_noise: [1e-4, 1e-5],
-            ..SlamotConfig::default()
-        };
-        let res = run_simulated_ekf(&cfg, &scen, 3).unwrap();
-        let (er, _) = mean_var(&res.robot_err);
-        assert!(er < 0.01, "robot {er}");
-        for e in &res.target_err {
-            let (m, _) = mean_var(e);
-            assert!(m < 0.05, "target {m}");
-        }
-    }
-
-    #[test]
-    fn s0_runs_beat_the_paper() {
-        let scen = SlamotScenarioConfig::s0();
-        let paper = [0.923, 1.544, 1.952];
-        for r in 0..2 {
-            let res = run_simulated_ekf(&SlamotConfig::default(), &scen, r).unwrap();
-            let (er, _) = mean_var(&res.robot_err);
-            assert!(er < 0.452, "run {r}: robot {er}");
-            for (l, bound) in paper.iter().enumerate() {
-                let (el, _) = mean_var(&res.target_err[l]);
-                assert!(el < *bound && el > 0.02, "run {r} target {l}: {el}");
-            }
-            assert!(!res.swap_or_loss);
-        }
-    }
+    use crate::slamot::SlamotTracker;
 
     #[test]
     fn errors_not_panics() {
@@ -737,7 +619,7 @@ mod tests {
         };
         assert!(matches!(
             EkfSlamot::new(cfg, Pose2::identity()),
-            Err(SlamotError::Config(_))
+            Err(TrackerError::Config { .. })
         ));
         assert!(EkfSlamot::new(SlamotConfig::default(), Pose2::new(f64::NAN, 0.0, 0.0)).is_err());
         let mut e = EkfSlamot::new(SlamotConfig::default(), Pose2::identity()).unwrap();
@@ -816,39 +698,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    /// One particle with no control noise: the RBPF's pose is exact and its landmarks and targets
-    /// are independent EKFs; the joint EKF with zero control noise has P_R· = 0 and must give the
-    /// same target estimates (same association, same updates).
-    #[test]
-    fn matches_a_one_particle_rbpf_without_pose_noise() {
-        let mut scen = SlamotScenarioConfig::s0();
-        scen.duration = 15.0;
-        scen.sigma_v = 0.0;
-        scen.sigma_g = 0.0;
-        let frames = quarry_sim::slamot::simulate(&scen, 5).unwrap();
-        let cfg = SlamotConfig {
-            particles: 1,
-            control_noise: [0.0, 0.0],
-            ..SlamotConfig::default()
-        };
-        let init = Pose2::new(4.0, 54.0, 0.0);
-        let mut pf = SlamotTracker::new(cfg.clone(), init, 1).unwrap();
-        let mut ekf = EkfSlamot::new(cfg, init).unwrap();
-        for f in &frames {
-            let s = Stamp::from_frame(f.k, 0.025);
-            let o = SlamotObservation::from(f);
-            let a = pf.step(s, &o).unwrap();
-            let b = ekf.step(s, &o).unwrap();
-            assert_eq!(a.len(), b.len());
-            for (x, y) in a.iter().zip(&b) {
-                let (xa, xb) = (x.xy().unwrap(), y.xy().unwrap());
-                assert!((xa[0] - xb[0]).abs() < 1e-6 && (xa[1] - xb[1]).abs() < 1e-6);
-            }
-        }
-        let p = ekf.pose_estimate();
-        let q = pf.pose_estimate();
-        assert!((p.x - q.x).abs() < 1e-9 && (p.theta - q.theta).abs() < 1e-9);
     }
 }

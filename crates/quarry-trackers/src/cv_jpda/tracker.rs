@@ -1,109 +1,18 @@
-//! A small stand-alone multi-target tracker: constant-velocity Kalman filter per track, χ²
-//! gating, JPDA or JIPDA association (quarry-assoc) and the PDA combined-innovation update
-//! (spec 000 §2.9), with track birth, confirmation and deletion.
-//!
-//! - **Known targets** ([`JpdaTracker::with_tracks`]): fixed track set, no birth or deletion —
-//!   the "known n" workload of the Stone Soup peer benchmark.
-//! - **Unknown count** ([`JpdaTracker::new`]): every detection left unexplained
-//!   (`Σ_i β_ij < 0.5`) starts a tentative track at the detection with zero velocity and
-//!   variance `birth_vel_sigma²`. With [`AssocMode::Jipda`] each track carries an existence
-//!   probability ψ (birth ψ₀, survival p_S per scan) and is confirmed/deleted by
-//!   [`ExistenceThresholds`]; with [`AssocMode::Jpda`] by M-of-N on "detected" = β_i0 < 0.5.
-//!
-//! The state is `[x, y, vx, vy]`, measurements are positions.
-//!
-//! ```
-//! use nalgebra::Vector4;
-//! use quarry_core::{MultiTargetTracker, Stamp};
-//! use quarry_trackers::jpda::{JpdaTracker, JpdaTrackerConfig};
-//! let cfg = JpdaTrackerConfig::default();
-//! let mut t = JpdaTracker::new(cfg)?;
-//! let mut out = Vec::new();
-//! for k in 0..8u64 {
-//!     let x = k as f64;
-//!     out = t.step(Stamp::from_frame(k, 1.0), &vec![[x, 0.0], [20.0 + 0.5 * x, 10.0]])?;
-//! }
-//! assert_eq!(out.len(), 2);          // both targets confirmed
-//! let p = out.iter().find(|r| r.xy().unwrap()[1] < 5.0).unwrap().xy().unwrap();
-//! assert!((p[0] - 7.0).abs() < 0.5);
-//! # let _ = Vector4::<f64>::zeros();
-//! # Ok::<(), quarry_trackers::TrackerError>(())
-//! ```
+//! [`JpdaTracker`]: prediction, gating, JPDA / JIPDA association, the PDA update and the track
+//! life cycle (see the [module docs](super)).
 
-use crate::TrackerError;
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix4, Vector2, Vector4};
-use quarry_assoc::lifecycle::{
-    ExistenceThresholds, MOfN, ScanObservation, TrackLifecycle, TrackState,
-};
-use quarry_assoc::{ChiSquareGate, Jipda, Jpda, Solver};
+use quarry_assoc::lifecycle::{MOfN, ScanObservation, TrackLifecycle, TrackState};
+use quarry_assoc::{ChiSquareGate, Jipda, Jpda};
 use quarry_core::{
     Associator, CoreError, Gaussian, LikelihoodMatrix, MultiTargetTracker, Stamp, StateEstimate,
     StateLayout, TimeUs, TrackFlags, TrackId, TrackPrior, TrackReport, TrackStatus,
 };
 use quarry_filter::ekf::{self, MeasurementPrediction};
-use quarry_filter::{ConstantVelocity2, FilterError, Position2, UpdateForm};
+use quarry_filter::{ConstantVelocity2, Position2, UpdateForm};
 
-/// Which associator the tracker uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum AssocMode {
-    /// JPDA; M-of-N track management.
-    Jpda,
-    /// JIPDA with existence; existence-threshold track management.
-    Jipda,
-}
-
-/// Tracker parameters. `Default` matches the shared `jpda_n*` bench scenarios
-/// (`bench-data/params.json`): P_D 0.9, P_G 0.99, κ = 10/3600 m⁻², q = 0.001, σ = 0.5 m.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JpdaTrackerConfig {
-    /// Detection probability P_D.
-    pub pd: f64,
-    /// Gate probability P_G (γ = χ²₂⁻¹(P_G)).
-    pub prob_gate: f64,
-    /// Clutter density κ (m⁻²).
-    pub clutter_density: f64,
-    /// CWNA process-noise spectral density q (m²/s³).
-    pub q: f64,
-    /// Position measurement standard deviation (m).
-    pub sigma_meas: f64,
-    /// JPDA or JIPDA.
-    pub mode: AssocMode,
-    /// Velocity standard deviation of a newborn track (m/s).
-    pub birth_vel_sigma: f64,
-    /// JIPDA: existence of a newborn track and confirm / delete thresholds.
-    pub existence: ExistenceThresholds,
-    /// JIPDA: survival probability per scan.
-    pub survival: f64,
-    /// JPDA: M-of-N confirmation `(m, n, max consecutive misses)`.
-    pub m_of_n: (u32, u32, u32),
-    /// Report tentative tracks too.
-    pub report_tentative: bool,
-    /// Association solver (exact / k-best / LBP choice).
-    pub solver: Solver,
-}
-
-impl Default for JpdaTrackerConfig {
-    fn default() -> Self {
-        Self {
-            pd: 0.9,
-            prob_gate: 0.99,
-            clutter_density: 10.0 / 3600.0,
-            q: 0.001,
-            sigma_meas: 0.5,
-            mode: AssocMode::Jipda,
-            birth_vel_sigma: 1.0,
-            existence: ExistenceThresholds {
-                birth: 0.2,
-                confirm: 0.9,
-                delete: 0.05,
-            },
-            survival: 0.99,
-            m_of_n: (3, 4, 5),
-            report_tentative: false,
-            solver: Solver::default(),
-        }
-    }
-}
+use super::config::{AssocMode, JpdaTrackerConfig};
+use crate::{TrackerConfig, TrackerError};
 
 enum Life {
     Existence(quarry_assoc::lifecycle::ExistenceRecord),
@@ -147,32 +56,16 @@ pub struct JpdaTracker {
     manage: bool,
 }
 
-fn fe(e: FilterError) -> TrackerError {
-    TrackerError::Core(CoreError::from(e))
-}
-
 impl JpdaTracker {
-    /// A tracker that starts with no tracks and creates them from detections.
+    /// A tracker that starts with no tracks and creates them from detections; `cfg` is
+    /// validated ([`TrackerConfig::validate`]).
     pub fn new(cfg: JpdaTrackerConfig) -> Result<Self, TrackerError> {
-        let motion = ConstantVelocity2::cwna(cfg.q).map_err(fe)?;
-        let meas = Position2::isotropic(cfg.sigma_meas).map_err(fe)?;
+        cfg.validate()?;
+        let motion = ConstantVelocity2::cwna(cfg.q)?;
+        let meas = Position2::isotropic(cfg.sigma_meas)?;
         let gamma = ChiSquareGate::new(cfg.prob_gate)?.threshold(2)?;
         let (m, n, k) = cfg.m_of_n;
         let m_of_n = MOfN::new(m, n, k)?;
-        if !(cfg.birth_vel_sigma.is_finite() && cfg.birth_vel_sigma > 0.0) {
-            return Err(TrackerError::config(
-                "cv_jpda",
-                "birth_vel_sigma must be positive",
-            ));
-        }
-        if !(0.0..=1.0).contains(&cfg.survival) {
-            return Err(TrackerError::config(
-                "cv_jpda",
-                "survival must be in [0, 1]",
-            ));
-        }
-        // Validates pd, prob_gate and clutter_density.
-        Jpda::new(cfg.pd, cfg.prob_gate, cfg.clutter_density)?;
         Ok(Self {
             cfg,
             motion,
@@ -295,14 +188,14 @@ impl MultiTargetTracker for JpdaTracker {
         self.last_t = Some(stamp.t);
         for t in &mut self.tracks {
             t.born_now = false;
-            t.est = ekf::predict(&t.est, &self.motion, &(), dt).map_err(fe)?;
+            t.est = ekf::predict(&t.est, &self.motion, &(), dt)?;
         }
         let n = self.tracks.len();
         let m = input.len();
         // Predicted measurements, innovations and gated log-likelihoods.
         let mut preds = Vec::with_capacity(n);
         for t in &self.tracks {
-            preds.push(MeasurementPrediction::<4, 2>::new(&t.est, &self.meas).map_err(fe)?);
+            preds.push(MeasurementPrediction::<4, 2>::new(&t.est, &self.meas)?);
         }
         let mut nus = vec![Vector2::zeros(); n * m];
         let lik = LikelihoodMatrix::from_fn(n, m, |i, j| {

@@ -1,1 +1,0 @@
-//! Placeholder while the restructure moves the slamot experiments here.

@@ -1,0 +1,47 @@
+//! [`SlamotObservation`]: what the tracker (and the EKF-SLAMOT baseline) sees at one control
+//! step. The simulator's frames and the MRCLAM reader's frames become observations in
+//! quarry-repro (`quarry_repro::slamot::observation`, `mrclam_observation`).
+
+use quarry_core::{CoreError, LandmarkId};
+use serde::{Deserialize, Serialize};
+
+/// What the tracker sees at one control step: a frame without its truth.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct SlamotObservation {
+    /// Control step length \[s\].
+    pub dt: f64,
+    /// Odometry control ((V, G) for the bicycle, (v, ω) for the unicycle).
+    pub odometry: (f64, f64),
+    /// Observation epoch (landmark/target detections processed).
+    pub observe: bool,
+    /// Landmark detections (external id, [range, bearing]).
+    pub landmark_obs: Vec<(LandmarkId, [f64; 2])>,
+    /// Target detections [range, bearing], no identity.
+    pub target_obs: Vec<[f64; 2]>,
+}
+
+impl SlamotObservation {
+    /// Checks that every landmark and target detection is finite (what both the RBPF and the
+    /// EKF-SLAMOT baseline require before an observation epoch).
+    pub fn check_detections(&self) -> Result<(), CoreError> {
+        if self
+            .landmark_obs
+            .iter()
+            .any(|(_, z)| !(z[0].is_finite() && z[1].is_finite()))
+        {
+            return Err(CoreError::NonFinite {
+                what: "landmark detection",
+            });
+        }
+        if self
+            .target_obs
+            .iter()
+            .any(|z| !(z[0].is_finite() && z[1].is_finite()))
+        {
+            return Err(CoreError::NonFinite {
+                what: "target detection",
+            });
+        }
+        Ok(())
+    }
+}
