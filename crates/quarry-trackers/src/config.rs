@@ -91,7 +91,7 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
         let toml_err = |source| TrackerError::Toml {
             tracker: Self::NAME,
             file: None,
-            source,
+            source: Box::new(source),
         };
         let mut user: toml::Table = toml::from_str(text).map_err(toml_err)?;
         let named = match user.remove("preset") {
@@ -186,7 +186,7 @@ fn overlay<C: TrackerConfig>(
         .map_err(|source| TrackerError::Toml {
             tracker,
             file: None,
-            source,
+            source: Box::new(source),
         })
 }
 

@@ -44,9 +44,9 @@ pub enum TrackerError {
         tracker: &'static str,
         /// The file it was read from, when it was.
         file: Option<String>,
-        /// The TOML error (with line and column).
+        /// The TOML error (with line and column; boxed: it is large and rare).
         #[source]
-        source: toml::de::Error,
+        source: Box<toml::de::Error>,
     },
     /// A preset name that the tracker does not have.
     #[error("unknown {tracker} preset {name:?} (expected one of: {expected})")]

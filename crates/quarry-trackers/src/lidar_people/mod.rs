@@ -47,8 +47,8 @@ mod recorded;
 mod tracker;
 
 pub use calibration::{
-    CalibrationReport, FREE_SPACE_MARGIN_M, PendingCalibration, ScannerCalibration, ScannerInfo, calibrate_backgrounds,
-    pose_error, reference_index,
+    CalibrationReport, FREE_SPACE_MARGIN_M, PendingCalibration, ScannerCalibration, ScannerInfo,
+    calibrate_backgrounds, pose_error, reference_index,
 };
 pub use config::{Calibration, FusionTime, LidarPeopleConfig, Preset};
 pub use pipeline::{ClientPipeline, DynamicScan, Fusion, RowSource, ServerPipeline};
