@@ -80,7 +80,7 @@ pub struct MrclamFrame {
     pub k: u64,
     /// Time at the end of the step, seconds since the first frame.
     pub t: f64,
-    /// Step length [s].
+    /// Step length, seconds.
     pub dt: f64,
     /// Odometry (v [m/s], ω [rad/s]) applied over the step.
     pub odometry: (f64, f64),
@@ -101,7 +101,7 @@ pub struct MrclamRun {
     pub robot: u32,
     /// Subject numbers of the target robots, in slot order.
     pub target_robots: Vec<u32>,
-    /// Absolute time [s] of frame time 0.
+    /// Absolute time of frame time 0, seconds.
     pub t0: f64,
     /// Robot K's true pose at the start (the filter's map frame is anchored to it).
     pub initial_pose: Pose2,

@@ -200,3 +200,51 @@ fn merge(base: &mut toml::Table, user: toml::Table) {
         }
     }
 }
+
+/// What every configuration of the crate must satisfy (a test helper, used for each tracker by
+/// the test below): the default is the first preset; every preset validates, has a description,
+/// parses back from its name (with `_` for `-` too) and reads back from its own TOML over
+/// itself, over the default and named in the file; an empty file is the preset; an unknown key
+/// is an error.
+#[cfg(test)]
+pub(crate) fn check_convention<C: TrackerConfig + std::fmt::Debug>() {
+    let presets = <C::Preset as PresetName>::ALL;
+    assert!(!presets.is_empty(), "{}: no preset", C::NAME);
+    assert_eq!(C::preset(presets[0]), C::default(), "{}", C::NAME);
+    for &p in presets {
+        let c = C::preset(p);
+        c.validate()
+            .unwrap_or_else(|e| panic!("{} preset {}: {e}", C::NAME, p.name()));
+        assert!(!p.about().is_empty(), "{} preset {}", C::NAME, p.name());
+        assert_eq!(C::Preset::parse(p.name()).unwrap(), p);
+        assert_eq!(C::Preset::parse(&p.name().replace('-', "_")).unwrap(), p);
+        let text = c.to_toml().unwrap();
+        assert_eq!(C::from_toml(&text, Some(p)).unwrap(), c, "{text}");
+        assert_eq!(C::from_toml(&text, None).unwrap(), c, "{text}");
+        // the file naming its preset (configurations with a `preset` field write it themselves)
+        let table: toml::Table = toml::from_str(&text).unwrap();
+        let named = if table.contains_key("preset") {
+            text.clone()
+        } else {
+            format!("preset = {:?}\n{text}", p.name())
+        };
+        assert_eq!(C::from_toml(&named, None).unwrap(), c, "{named}");
+        assert_eq!(C::from_toml("", Some(p)).unwrap(), c);
+    }
+    let e = C::from_toml("no_such_key_in_any_config = 1", None).unwrap_err();
+    assert!(matches!(e, TrackerError::Toml { .. }), "{}: {e:?}", C::NAME);
+    assert!(C::Preset::parse("no-such-preset").is_err());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_convention;
+
+    #[test]
+    fn every_tracker_configuration_follows_the_convention() {
+        check_convention::<crate::slamot::SlamotConfig>();
+        check_convention::<crate::lidar_people::LidarPeopleConfig>();
+        check_convention::<crate::rgbd_person::RgbdPersonConfig>();
+        check_convention::<crate::cv_jpda::JpdaTrackerConfig>();
+    }
+}

@@ -200,26 +200,11 @@ impl crate::TrackerConfig for JpdaTrackerConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{PresetName, TrackerConfig};
+    use crate::TrackerConfig;
 
     #[test]
     fn every_preset_validates_and_round_trips() {
-        assert_eq!(
-            JpdaTrackerConfig::preset(Preset::default()),
-            JpdaTrackerConfig::default()
-        );
-        for p in Preset::ALL {
-            let c = JpdaTrackerConfig::preset(*p);
-            c.validate().unwrap();
-            assert_eq!(Preset::parse(p.name()).unwrap(), *p);
-            let t = c.to_toml().unwrap();
-            assert_eq!(
-                JpdaTrackerConfig::from_toml(&t, Some(*p)).unwrap(),
-                c,
-                "{t}"
-            );
-            assert_eq!(JpdaTrackerConfig::from_toml(&t, None).unwrap(), c, "{t}");
-        }
+        crate::config::check_convention::<JpdaTrackerConfig>();
         let c = JpdaTrackerConfig::from_toml(
             "preset = \"jpda\"\nm_of_n = [2, 3, 4]\n[solver]\nmethod = { kind = \"k-best\", k = 50 }",
             None,

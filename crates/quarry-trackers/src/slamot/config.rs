@@ -424,24 +424,8 @@ mod tests {
 
     #[test]
     fn every_preset_validates_and_round_trips() {
-        assert_eq!(
-            SlamotConfig::preset(Preset::default()),
-            SlamotConfig::default()
-        );
         assert_eq!(Preset::ALL[0], Preset::default());
-        for p in Preset::ALL {
-            let c = SlamotConfig::preset(*p);
-            c.validate().unwrap();
-            assert_eq!(Preset::parse(p.name()).unwrap(), *p);
-            let t = c.to_toml().unwrap();
-            // over the same preset, over the default and naming the preset in the file
-            assert_eq!(SlamotConfig::from_toml(&t, Some(*p)).unwrap(), c, "{t}");
-            assert_eq!(SlamotConfig::from_toml(&t, None).unwrap(), c, "{t}");
-            let named = format!("preset = {:?}\n{t}", p.name());
-            assert_eq!(SlamotConfig::from_toml(&named, None).unwrap(), c);
-            // an empty file is the preset itself
-            assert_eq!(SlamotConfig::from_toml("", Some(*p)).unwrap(), c);
-        }
+        crate::config::check_convention::<SlamotConfig>();
         assert_eq!(SlamotConfig::preset(Preset::S1), SlamotConfig::s1());
         assert_eq!(Preset::parse("S1").ok(), None);
         assert!(Preset::parse("s2").is_err());
