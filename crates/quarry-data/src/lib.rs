@@ -5,6 +5,8 @@
 //! | module | reads | feeds |
 //! |---|---|---|
 //! | [`mrclam`] | the UTIAS MRCLAM datasets (odometry, barcoded measurements, Vicon truth) | `quarry_trackers::slamot` |
+//! | [`ptb`] | Princeton Tracking Benchmark RGB-D sequences (paired rgb/depth PNGs, PTB depth encoding, init box) | `quarry_trackers::rgbd_person` |
+//! | [`image_sequence`] | MOTChallenge-style image directories (`img1/000001.jpg`, ...) | the video trackers, `quarry motion` |
 //! | [`leg_labels`] | the leg-tracker recordings' labels (leg centroids per scan) | scoring the lidar tracker |
 //! | [`scans_csv`] | recorded 2-D laser scans, `stamp_s,r0..r{N-1}` CSV with a `scan_meta.json` geometry | `quarry_trackers::lidar_people` |
 //!
@@ -27,8 +29,10 @@
 //! ```
 
 mod error;
+pub mod image_sequence;
 pub mod leg_labels;
 pub mod mrclam;
+pub mod ptb;
 pub mod scans_csv;
 
 pub use error::{DataError, Result};

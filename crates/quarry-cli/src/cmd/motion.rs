@@ -1,7 +1,7 @@
 //! `quarry motion`: moving-point detection over an image sequence (spec 004 §2.7–2.8).
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
@@ -118,27 +118,9 @@ fn parse_range(s: &str, n: usize) -> Result<(usize, usize), String> {
     Ok((a, b))
 }
 
-fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, String> {
-    let rd = std::fs::read_dir(dir).map_err(|e| format!("cannot read {}: {e}", dir.display()))?;
-    let mut files: Vec<PathBuf> = rd
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
-        })
-        .collect();
-    files.sort();
-    if files.is_empty() {
-        return Err(format!("no PNG or JPEG frames in {}", dir.display()));
-    }
-    Ok(files)
-}
-
 /// Runs `quarry motion`.
 pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
-    let files = list_frames(&args.dir)?;
+    let files = quarry_data::image_sequence::list_frames(&args.dir)?;
     let (a, b) = match &args.frames {
         Some(s) => parse_range(s, files.len())?,
         None => (1, files.len()),

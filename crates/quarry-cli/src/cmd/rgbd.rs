@@ -8,6 +8,7 @@ use std::time::Instant;
 use clap::Args;
 use image::{Rgb, RgbImage};
 use quarry_core::{BBox, EgoMotion, Plane, SingleTargetTracker, Stamp};
+use quarry_data::ptb::{DepthFormat, PtbSequence, depth_metres};
 use quarry_repro::rgbd::{OdometryFeed, ScenarioSummary, run_scenario, run_scenario_frames};
 use quarry_sim::rgbd::{RgbdScene, ScenarioId};
 use quarry_trackers::rgbd_person::{
@@ -102,64 +103,15 @@ struct Report {
 }
 
 fn parse_box(s: &str) -> Result<BBox, CmdError> {
-    let v: Vec<f64> = s
-        .split(|c: char| c == ',' || c.is_whitespace())
-        .filter(|t| !t.is_empty())
-        .map(str::parse)
-        .collect::<Result<_, _>>()
-        .map_err(|e| format!("box {s:?}: {e}"))?;
-    if v.len() < 4 || !v.iter().take(4).all(|x| x.is_finite()) || v[2] <= 0.0 || v[3] <= 0.0 {
-        return Err(format!("box {s:?}: need x,y,w,h with finite values and w, h > 0").into());
-    }
-    Ok(BBox::from_ltwh(v[0], v[1], v[2], v[3]))
+    Ok(quarry_data::ptb::parse_box(s)?)
 }
 
-/// Frame number: the last run of digits in the file stem.
-fn frame_number(p: &Path) -> Option<u64> {
-    let stem = p.file_stem()?.to_str()?;
-    let mut last = None;
-    let mut cur = String::new();
-    for c in stem.chars().chain(std::iter::once('_')) {
-        if c.is_ascii_digit() {
-            cur.push(c);
-        } else if !cur.is_empty() {
-            last = cur.parse().ok();
-            cur.clear();
-        }
-    }
-    last
-}
-
-fn list(dir: &Path) -> Result<Vec<(u64, PathBuf)>, CmdError> {
-    let mut v = Vec::new();
-    for e in std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))? {
-        let p = e?.path();
-        if p.extension()
-            .and_then(|x| x.to_str())
-            .is_some_and(|x| x.eq_ignore_ascii_case("png"))
-            && let Some(n) = frame_number(&p)
-        {
-            v.push((n, p));
-        }
-    }
-    v.sort();
-    Ok(v)
-}
-
-/// Reads one PTB depth PNG (u16) into metres.
-fn load_depth(p: &Path, ptb: bool) -> Result<Plane<f32>, CmdError> {
+/// Reads one depth PNG (u16) into metres.
+fn load_depth(p: &Path, format: DepthFormat) -> Result<Plane<f32>, CmdError> {
     let img = image::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
     let img = img.to_luma16();
     let (w, h) = img.dimensions();
-    let data = img
-        .into_raw()
-        .into_iter()
-        .map(|v| {
-            let mm = if ptb { v.rotate_right(3) } else { v };
-            f32::from(mm) / 1000.0
-        })
-        .collect();
-    Ok(Plane::from_vec(w, h, data)?)
+    Ok(depth_metres(&img.into_raw(), w, h, format)?)
 }
 
 fn colour(o: &TrackOutput) -> Rgb<u8> {
@@ -360,41 +312,23 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
 
 #[allow(clippy::cast_precision_loss)]
 fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Output) -> CmdResult {
-    let ptb = match args.depth_format.as_str() {
-        "ptb" => true,
-        "mm" => false,
-        o => return Err(format!("--depth-format {o:?}: expected ptb or mm").into()),
-    };
-    let rgbs = list(&dir.join("rgb"))?;
-    let depths = list(&dir.join("depth"))?;
-    if rgbs.is_empty() {
-        return Err(format!("{}: no PNG frames in rgb/", dir.display()).into());
-    }
+    let format = DepthFormat::parse(&args.depth_format)
+        .map_err(|_| format!("--depth-format {:?}: expected ptb or mm", args.depth_format))?;
+    let seq = PtbSequence::open(dir)?;
     let init = if let Some(s) = &args.init {
         parse_box(s)?
     } else {
-        let p = dir.join("init.txt");
-        parse_box(
-            std::fs::read_to_string(&p)
-                .map_err(|e| format!("no --init and {}: {e}", p.display()))?
-                .lines()
-                .next()
-                .unwrap_or(""),
-        )?
+        seq.init_box().map_err(|e| format!("no --init and {e}"))?
     };
     let mut tr: Option<RgbdPersonTracker> = None;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
     let (mut total_ms, mut n) = (0.0, 0usize);
-    for (k, (num, rp)) in rgbs.iter().enumerate() {
-        let dp = depths
-            .iter()
-            .find(|(m, _)| m == num)
-            .map(|x| &x.1)
-            .ok_or_else(|| format!("frame {num}: {} has no depth frame", rp.display()))?;
+    for (k, f) in seq.frames.iter().enumerate() {
+        let (num, rp, dp) = (f.number, &f.rgb, &f.depth);
         let rgb = image::open(rp)
             .map_err(|e| format!("{}: {e}", rp.display()))?
             .to_rgb8();
-        let depth = load_depth(dp, ptb)?;
+        let depth = load_depth(dp, format)?;
         let (w, h) = rgb.dimensions();
         if depth.dimensions() != (w, h) {
             return Err(format!(
@@ -436,7 +370,7 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
         scenario: None,
         sequence: Some(dir.display().to_string()),
         preset: cfg.preset.name(),
-        frames: rgbs.len(),
+        frames: seq.frames.len(),
         center_err_px: None,
         success_rate_iou50: None,
         recovery_frames: None,
@@ -447,7 +381,7 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
         format!(
             "{}: {} frames tracked, {:.1} ms/frame (no ground truth read)\n",
             dir.display(),
-            rgbs.len(),
+            seq.frames.len(),
             rep.ms_per_frame
         )
     })
@@ -489,6 +423,7 @@ mod tests {
 
     #[test]
     fn parsing() {
+        use quarry_data::ptb::frame_number;
         assert_eq!(frame_number(Path::new("r-123_45.png")), Some(45));
         assert_eq!(frame_number(Path::new("abc.png")), None);
         assert!(parse_box("1,2,3,4").is_ok());
