@@ -136,6 +136,30 @@ fn eval_errors_are_clear_and_not_panics() {
 }
 
 #[test]
+fn duration_flags_are_refused_not_panics_or_hangs() {
+    // each used to panic in Duration::from_secs_f64 (exit 101) or to run until killed
+    for args in [
+        &["lidar-node", "--wait-server", "inf"][..],
+        &["lidar-node", "--wait-server", "1e20"][..],
+        &["lidar-server", "--duration", "1e20"][..],
+        &["lidar-server", "--duration=-1"][..],
+        &["lidar-server", "--duration", "nan"][..],
+        &[
+            "lidar-server",
+            "--idle-timeout",
+            "1e20",
+            "--clock",
+            "virtual",
+        ][..],
+    ] {
+        let (code, _, stderr) = quarry(args);
+        assert_eq!(code, 1, "{args:?}: {stderr}");
+        assert!(stderr.contains("30 days"), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+#[test]
 fn demo_json_reports_kf_rmse() {
     let (code, stdout, stderr) = quarry(&["demo", "--json"]);
     assert_eq!(code, 0, "stderr: {stderr}");

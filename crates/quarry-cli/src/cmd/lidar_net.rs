@@ -59,6 +59,24 @@ pub struct ZenohArgs {
     pub multicast: bool,
 }
 
+/// The longest wait or run a duration flag accepts: 30 days (anything longer is a typo, and
+/// `inf` or `1e20` would not fit a `Duration` or the deadline arithmetic on an `Instant`).
+const MAX_FLAG_SECONDS: f64 = 30.0 * 86_400.0;
+
+/// A duration flag in seconds: finite, `>= 0` (or `> 0` when `positive`), at most
+/// [`MAX_FLAG_SECONDS`].
+fn seconds_flag(flag: &str, v: f64, positive: bool) -> Result<Duration, CmdError> {
+    let ok_low = if positive { v > 0.0 } else { v >= 0.0 };
+    if !(v.is_finite() && ok_low && v <= MAX_FLAG_SECONDS) {
+        let low = if positive { "> 0" } else { ">= 0" };
+        return Err(format!(
+            "{flag} {v}: expected a number of seconds {low} and at most {MAX_FLAG_SECONDS} (30 days)"
+        )
+        .into());
+    }
+    Ok(Duration::try_from_secs_f64(v).map_err(|e| format!("{flag} {v}: {e}"))?)
+}
+
 fn clock_mode(s: &str) -> Result<bool, CmdError> {
     match s {
         "virtual" => Ok(true),
@@ -161,7 +179,7 @@ pub struct LidarNodeArgs {
     /// unless it runs with --accept-unsynced).
     #[arg(long)]
     pub no_sync: bool,
-    /// Seconds to wait for the server's beacon.
+    /// Seconds to wait for the server's beacon (>= 0, at most 30 days).
     #[arg(long, default_value_t = 30.0)]
     pub wait_server: f64,
     #[command(flatten)]
@@ -194,7 +212,7 @@ pub fn run_node(a: &LidarNodeArgs, out: &Output) -> CmdResult {
 fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
     let virtual_time = clock_mode(&a.clock)?;
     let cfg = load_config(&a.room)?;
-    let wait = Duration::from_secs_f64(a.wait_server.max(0.0));
+    let wait = seconds_flag("--wait-server", a.wait_server, false)?;
     if virtual_time {
         if a.scans.is_some() {
             return Err("--scans needs --clock wall (recordings replay in real time)".into());
@@ -305,10 +323,11 @@ pub struct LidarServerArgs {
     /// Output directory (tracks.csv, tracks_mot.txt, server.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Wall clock: stop after this many seconds.
+    /// Wall clock: stop after this many seconds (> 0, at most 30 days).
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Stop (wall clock) or fail (virtual time) after this many seconds without data.
+    /// Stop (wall clock) or fail (virtual time) after this many seconds without data (> 0, at
+    /// most 30 days).
     #[arg(long, default_value_t = 20.0)]
     pub idle_timeout: f64,
     #[command(flatten)]
@@ -461,20 +480,18 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
                 .collect()
         }
     };
-    if !(a.idle_timeout.is_finite() && a.idle_timeout > 0.0) {
-        return Err("--idle-timeout must be positive".into());
-    }
-    let idle = Duration::from_secs_f64(a.idle_timeout);
+    let idle = seconds_flag("--idle-timeout", a.idle_timeout, true)?;
+    let max_duration = a
+        .duration
+        .map(|d| seconds_flag("--duration", d, true))
+        .transpose()?;
     let t = open_transport(&a.net)?;
     let run = if virtual_time {
         let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
         quarry_net::run_sim_server(t.as_ref(), &sensors, &cfg, t_end, idle)?
     } else {
         let opts = WallServerOptions {
-            max_duration: a
-                .duration
-                .filter(|d| d.is_finite() && *d > 0.0)
-                .map(Duration::from_secs_f64),
+            max_duration,
             idle_timeout: idle,
             ..WallServerOptions::default()
         };
@@ -490,4 +507,33 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
         std::fs::write(&path, js).map_err(at(&path))?;
     }
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn duration_flags_refuse_what_a_duration_cannot_hold() {
+        // quarry lidar-node --wait-server inf / 1e20 and lidar-server --duration 1e20 used to
+        // panic in Duration::from_secs_f64; --duration -1 / nan / inf ran until killed
+        for v in [f64::INFINITY, 1e20, -1.0, f64::NAN, f64::NEG_INFINITY] {
+            assert!(seconds_flag("--wait-server", v, false).is_err(), "{v}");
+            assert!(seconds_flag("--duration", v, true).is_err(), "{v}");
+        }
+        assert!(seconds_flag("--duration", 0.0, true).is_err());
+        assert_eq!(
+            seconds_flag("--wait-server", 0.0, false).unwrap(),
+            Duration::ZERO
+        );
+        assert_eq!(
+            seconds_flag("--idle-timeout", 20.0, true).unwrap(),
+            Duration::from_secs(20)
+        );
+        assert!(seconds_flag("--duration", MAX_FLAG_SECONDS, true).is_ok());
+        let e = seconds_flag("--duration", 1e20, true)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--duration") && e.contains("30 days"), "{e}");
+    }
 }
