@@ -160,6 +160,24 @@ fn duration_flags_are_refused_not_panics_or_hangs() {
 }
 
 #[test]
+fn sift_match_thresholds_are_refused_when_meaningless() {
+    // --ratio nan used to switch the ratio test off, --ratio -1 / --max-distance nan gave 0
+    // matches; the thresholds are checked before any image is read
+    for args in [
+        &["sift", "a.png", "b.png", "--ratio", "nan"][..],
+        &["sift", "a.png", "b.png", "--ratio=-1"][..],
+        &["sift", "a.png", "b.png", "--max-distance", "nan"][..],
+    ] {
+        let (code, _, stderr) = quarry(args);
+        assert_eq!(code, 1, "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("ratio") || stderr.contains("max_distance"),
+            "{args:?}: {stderr}"
+        );
+    }
+}
+
+#[test]
 fn demo_json_reports_kf_rmse() {
     let (code, stdout, stderr) = quarry(&["demo", "--json"]);
     assert_eq!(code, 0, "stderr: {stderr}");

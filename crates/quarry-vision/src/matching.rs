@@ -19,6 +19,7 @@
 //! assert_eq!(m.len(), 3);
 //! ```
 
+use crate::VisionError;
 use crate::sift::SiftDescriptor;
 use serde::{Deserialize, Serialize};
 use std::cmp::Reverse;
@@ -410,8 +411,37 @@ impl Default for MatchOptions {
     }
 }
 
+impl MatchOptions {
+    /// Checks the thresholds: a ratio must be finite and in (0, 1], a distance threshold finite
+    /// and > 0. (A NaN ratio would switch the test off silently, a negative one or a NaN
+    /// distance would reject every match.)
+    pub fn validate(&self) -> Result<(), VisionError> {
+        if let Some(r) = self.ratio
+            && !(r.is_finite() && r > 0.0 && r <= 1.0)
+        {
+            return Err(quarry_core::CoreError::invalid(
+                "ratio",
+                format!("{r}: must be finite and in (0, 1]"),
+            )
+            .into());
+        }
+        if let Some(t) = self.max_distance
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(quarry_core::CoreError::invalid(
+                "max_distance",
+                format!("{t}: must be finite and > 0"),
+            )
+            .into());
+        }
+        Ok(())
+    }
+}
+
 /// Matches `query` against `train`: nearest neighbour, then the ratio test, the distance
-/// threshold and the mutual check as selected in `opts`. Sorted by query index.
+/// threshold and the mutual check as selected in `opts` (check them first with
+/// [`MatchOptions::validate`]: NaN or negative thresholds are not meaningful). Sorted by query
+/// index.
 pub fn match_descriptors<M: DescriptorMatcher + ?Sized>(
     matcher: &M,
     query: &[SiftDescriptor],
@@ -445,6 +475,25 @@ pub fn match_descriptors<M: DescriptorMatcher + ?Sized>(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn match_options_refuse_meaningless_thresholds() {
+        assert!(MatchOptions::default().validate().is_ok());
+        for r in [f32::NAN, -1.0, 0.0, 1.5, f32::INFINITY] {
+            let o = MatchOptions {
+                ratio: Some(r),
+                ..MatchOptions::default()
+            };
+            assert!(o.validate().is_err(), "{r}");
+        }
+        for t in [f32::NAN, -1.0, 0.0] {
+            let o = MatchOptions {
+                max_distance: Some(t),
+                ..MatchOptions::default()
+            };
+            assert!(o.validate().is_err(), "{t}");
+        }
+    }
+
     use super::*;
     use proptest::prelude::*;
 

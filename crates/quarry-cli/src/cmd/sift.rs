@@ -117,6 +117,19 @@ pub fn run(args: &SiftArgs, out: &Output) -> CmdResult {
         upsample: !args.no_upsample,
         ..SiftParams::default()
     })?;
+    if !(args.ratio.is_finite() && args.ratio > 0.0 && args.ratio <= 1.0) {
+        return Err(format!(
+            "--ratio {}: must be finite and in (0, 1] (1 disables the test)",
+            args.ratio
+        )
+        .into());
+    }
+    let opts = MatchOptions {
+        ratio: (args.ratio < 1.0).then_some(args.ratio),
+        max_distance: args.max_distance,
+        mutual: args.mutual,
+    };
+    opts.validate()?;
     let img1 = load_gray(&args.image)?;
     let img2 = args.image2.as_ref().map(load_gray).transpose()?;
     let t0 = Instant::now();
@@ -124,11 +137,6 @@ pub fn run(args: &SiftArgs, out: &Output) -> CmdResult {
     let second = match &img2 {
         Some(img) => {
             let (k2, d2) = sift.extract(img)?;
-            let opts = MatchOptions {
-                ratio: (args.ratio < 1.0).then_some(args.ratio),
-                max_distance: args.max_distance,
-                mutual: args.mutual,
-            };
             let m = match_descriptors(&BruteForceL2, &d1, &d2, &opts);
             Some((k2, m))
         }
