@@ -231,7 +231,7 @@ pub fn read_gt(text: &str, style: GtStyle) -> Result<Vec<GtRow>, EvalError> {
             (None, None)
         };
         let world_xy = match (mot16, row.extra[0], row.extra[1]) {
-            (false, Some(x), Some(y)) => Some([x, y]),
+            (false, Some(x), Some(y)) => world(x, y),
             _ => None,
         };
         out.push(GtRow {
@@ -311,10 +311,17 @@ pub fn to_frames(
         .collect())
 }
 
+/// World coordinates of columns 8-9, or `None` for MOTChallenge's "unused" marker `-1, -1`
+/// (MOT15 writes -1 in every world column of most sequences; taking it as a position would
+/// match every box to every other at distance 0).
+fn world(x: f64, y: f64) -> Option<[f64; 2]> {
+    (!(x == -1.0 && y == -1.0)).then_some([x, y])
+}
+
 /// Like [`to_frames`], but each object is the world position `(x, y)` of columns 8-9 (for
 /// ground-plane evaluation with [`crate::Euclidean`]). Ignored rows are removed as in
 /// [`to_frames`] (by box overlap); a kept row without world coordinates (a MOT16-style ground
-/// truth, or fewer than 9 columns) is an error.
+/// truth, fewer than 9 columns, or the "unused" marker `-1, -1`) is an error.
 pub fn to_point_frames(
     gt: &[GtRow],
     res: &[MotRow],
@@ -341,7 +348,9 @@ pub fn to_point_frames(
                 hyp: r
                     .iter()
                     .map(|r| match (r.extra[0], r.extra[1]) {
-                        (Some(x), Some(y)) => Ok((r.id, [x, y])),
+                        (Some(x), Some(y)) => world(x, y)
+                            .map(|w| (r.id, w))
+                            .ok_or_else(|| missing("result", r.frame, r.id)),
                         _ => Err(missing("result", r.frame, r.id)),
                     })
                     .collect::<Result<_, _>>()?,
@@ -438,6 +447,20 @@ fn select<'a>(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn unused_world_columns_are_not_positions() {
+        // MOT15 ground truth and results with -1 world columns: --dist must refuse them, not
+        // match every box at distance 0 (which scored MOTA 1.0 for boxes 500 px apart)
+        let gt = read_gt("1,1,10,10,20,20,1,-1,-1,-1\n", GtStyle::Auto).unwrap();
+        assert_eq!(gt[0].world_xy, None);
+        let res = read_results("1,1,510,510,20,20,1,-1,-1,-1\n").unwrap();
+        let e = to_point_frames(&gt, &res, 0.5).unwrap_err();
+        assert!(e.to_string().contains("no world x, y"), "{e}");
+        // a real position is kept, also one with a single -1 coordinate
+        let gt = read_gt("1,1,10,10,20,20,1,-1,2.5,0\n", GtStyle::Auto).unwrap();
+        assert_eq!(gt[0].world_xy, Some([-1.0, 2.5]));
+    }
+
     use super::*;
     use proptest::prelude::*;
 
