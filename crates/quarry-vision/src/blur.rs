@@ -116,7 +116,9 @@ impl GaussianKernel {
         let mut weights: Vec<f64> = (0..size)
             .map(|i| {
                 let x = i as f64 - r;
-                (scale * x * x).exp()
+                // the centre tap is exp(0) = 1 whatever σ: for a σ so small that σ² underflows,
+                // `scale` is −∞ and −∞·0 would be NaN (`segment --sigma 1e-200` gave NaN pixels)
+                if x == 0.0 { 1.0 } else { (scale * x * x).exp() }
             })
             .collect();
         let sum: f64 = weights.iter().sum();
@@ -510,6 +512,16 @@ mod tests {
         assert!(GaussianKernel::opencv_size(-1.0).is_err());
         assert!(GaussianKernel::opencv_size(f64::NAN).is_err());
         assert!(GaussianKernel::opencv_size(1e9).is_err());
+    }
+
+    #[test]
+    fn tiny_sigma_is_the_identity_not_nan() {
+        for sigma in [1e-200, 1e-160, 1e-30] {
+            let k = GaussianKernel::new(sigma).unwrap();
+            assert_eq!(k.weights, vec![1.0], "{sigma}");
+            let k = GaussianKernel::with_size(sigma, 5).unwrap();
+            assert_eq!(k.weights, vec![0.0, 0.0, 1.0, 0.0, 0.0], "{sigma}");
+        }
     }
 
     #[test]
