@@ -247,15 +247,30 @@ pub fn read_gt(text: &str, style: GtStyle) -> Result<Vec<GtRow>, EvalError> {
     Ok(out)
 }
 
+/// The largest MOTChallenge file the readers accept (512 MiB: MOT20's largest ground truth is a
+/// few tens of MiB). A longer input, an endless one such as `/dev/zero` among them, is an error
+/// after reading one byte more than this, never an unbounded allocation.
+pub const MAX_FILE_BYTES: u64 = 512 << 20;
+
 fn read_file(path: &Path) -> Result<String, EvalError> {
-    std::fs::read(path)
-        .map_err(|source| EvalError::Io {
-            path: path.display().to_string(),
-            source,
-        })
-        .and_then(|b| {
-            String::from_utf8(b).map_err(|_| EvalError::parse(1, "file is not UTF-8 text"))
-        })
+    read_file_limited(path, MAX_FILE_BYTES)
+}
+
+fn read_file_limited(path: &Path, limit: u64) -> Result<String, EvalError> {
+    use std::io::Read as _;
+    let io = |source| EvalError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let mut b = Vec::new();
+    f.take(limit + 1).read_to_end(&mut b).map_err(io)?;
+    if b.len() as u64 > limit {
+        return Err(io(std::io::Error::other(format!(
+            "larger than {limit} bytes, the limit for a MOTChallenge file"
+        ))));
+    }
+    String::from_utf8(b).map_err(|_| EvalError::parse(1, "file is not UTF-8 text"))
 }
 
 /// Reads a ground-truth file.
@@ -447,6 +462,20 @@ fn select<'a>(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn endless_or_oversized_files_are_refused() {
+        let p = std::env::temp_dir().join(format!("quarry-eval-big-{}.txt", std::process::id()));
+        std::fs::write(&p, "1,1,0,0,10,10,1,-1,-1,-1\n".repeat(10)).unwrap();
+        assert!(read_file_limited(&p, 1 << 20).is_ok());
+        let e = read_file_limited(&p, 100).unwrap_err();
+        assert!(e.to_string().contains("larger than 100 bytes"), "{e}");
+        std::fs::remove_file(&p).ok();
+        let zero = Path::new("/dev/zero");
+        if zero.exists() {
+            assert!(read_file_limited(zero, 4096).is_err());
+        }
+    }
+
     #[test]
     fn unused_world_columns_are_not_positions() {
         // MOT15 ground truth and results with -1 world columns: --dist must refuse them, not
