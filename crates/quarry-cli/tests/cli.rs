@@ -178,6 +178,20 @@ fn sift_match_thresholds_are_refused_when_meaningless() {
 }
 
 #[test]
+fn absurd_sizes_are_refused_before_allocating() {
+    // each used to allocate gigabytes or abort on a failed allocation (exit 134)
+    for (args, needle) in [
+        (&["slamot", "--particles", "10000000"][..], "particles"),
+        (&["slamot", "--particles", "1000000000"][..], "particles"),
+        (&["lidar", "--people", "1000000000"][..], "--people"),
+    ] {
+        let (code, _, stderr) = quarry(args);
+        assert_eq!(code, 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+    }
+}
+
+#[test]
 fn demo_json_reports_kf_rmse() {
     let (code, stdout, stderr) = quarry(&["demo", "--json"]);
     assert_eq!(code, 0, "stderr: {stderr}");

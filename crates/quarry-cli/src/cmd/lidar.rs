@@ -24,6 +24,10 @@ use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// The most walkers `--people` may put in the 10 x 8 m room (a billion used to abort on a failed
+/// allocation; 100 people is already a crowd of 1.25 per square metre).
+pub(crate) const MAX_PEOPLE: u32 = 100;
+
 /// Arguments of `quarry lidar`.
 #[derive(Args, Debug)]
 #[command(
@@ -69,7 +73,7 @@ pub struct LidarArgs {
     /// Evaluated frames (50 ms each) after the 7 s warm-up; the paper's protocol uses 4800.
     #[arg(long, default_value_t = 1200)]
     pub frames: usize,
-    /// People in the room.
+    /// People in the room (at most 100).
     #[arg(long, default_value_t = 3)]
     pub people: u32,
     /// Seed (evaluation seeds are 1-5, tuning seeds 101-105).
@@ -256,6 +260,13 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
     }
     if args.frames == 0 {
         return Err("--frames must be > 0".into());
+    }
+    if args.people > MAX_PEOPLE {
+        return Err(format!(
+            "--people {}: at most {MAX_PEOPLE} walkers fit the 10 x 8 m room",
+            args.people
+        )
+        .into());
     }
     let network = args
         .network

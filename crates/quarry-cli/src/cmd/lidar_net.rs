@@ -97,6 +97,14 @@ fn scenario(a: &RoomArgs, cfg: &LidarPeopleConfig) -> Result<Scenario, CmdError>
     }
     let band = SpeedBand::parse(&a.band)?;
     let duration = 7.0 + a.frames as f64 * cfg.frame_period_s + 0.3;
+    if a.people > super::lidar::MAX_PEOPLE {
+        return Err(format!(
+            "--people {}: at most {} walkers fit the 10 x 8 m room",
+            a.people,
+            super::lidar::MAX_PEOPLE
+        )
+        .into());
+    }
     Ok(Scenario::band(band, a.people, a.seed)
         .with_duration(duration)
         .with_network(NetworkModel::parse(&a.network)?)

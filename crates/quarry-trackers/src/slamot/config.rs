@@ -159,6 +159,10 @@ mod opt_f64 {
     }
 }
 
+/// The most particles a configuration may ask for (memory grows with N; one million particles
+/// of the S0 scenario need about 0.9 GB).
+pub const MAX_PARTICLES: usize = 1_000_000;
+
 /// Configuration of [`SlamotTracker`](super::SlamotTracker). `Default` = spec §3 values (the
 /// `paper` preset); each field says its source.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -319,8 +323,12 @@ impl crate::TrackerConfig for SlamotConfig {
     /// Checks every field and the rules between fields.
     fn validate(&self) -> Result<(), TrackerError> {
         let fail = |m: String| Err(TrackerError::config(Self::NAME, m));
-        if self.particles == 0 {
-            return fail("particles must be > 0".into());
+        if self.particles == 0 || self.particles > MAX_PARTICLES {
+            return fail(format!(
+                "particles = {} must be in 1..={MAX_PARTICLES} (each particle holds a map and \
+                 its targets: 10 million took 8.4 GB)",
+                self.particles
+            ));
         }
         if let RobotMotion::Bicycle { wheelbase } = self.motion
             && !(wheelbase.is_finite() && wheelbase > 0.0)
