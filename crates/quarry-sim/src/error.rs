@@ -3,29 +3,19 @@
 use quarry_core::CoreError;
 use thiserror::Error;
 
-/// Errors of quarry-sim (scenario configuration and dataset readers).
+/// Errors of quarry-sim (scenario configuration, and writing ground truth).
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum SimError {
     /// A shared error kind (bad parameter, non-finite value, ...).
     #[error(transparent)]
     Core(#[from] CoreError),
-    /// A dataset file that could not be read.
-    #[error("cannot read {path}: {reason}")]
+    /// A file that could not be written (the ground-truth CSV writer).
+    #[error("cannot write {path}: {reason}")]
     Io {
         /// The path.
         path: String,
         /// What went wrong.
-        reason: String,
-    },
-    /// A malformed line in a dataset file.
-    #[error("{path}:{line}: {reason}")]
-    Parse {
-        /// The file.
-        path: String,
-        /// 1-based line number.
-        line: usize,
-        /// What was wrong.
         reason: String,
     },
 }
