@@ -88,12 +88,8 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
     /// is an error. When both `preset` and the file's `preset` key are given and differ, that is
     /// an error too (say one or the other).
     fn from_toml(text: &str, preset: Option<Self::Preset>) -> Result<Self, TrackerError> {
-        let toml_err = |source| TrackerError::Toml {
-            tracker: Self::NAME,
-            file: None,
-            source: Box::new(source),
-        };
-        let mut user: toml::Table = toml::from_str(text).map_err(toml_err)?;
+        let mut user: toml::Table =
+            toml::from_str(text).map_err(|e| toml_error(Self::NAME, text, e))?;
         let named = match user.remove("preset") {
             None => None,
             Some(toml::Value::String(s)) => Some(Self::Preset::parse(&s)?),
@@ -118,7 +114,10 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
             (Some(p), _) | (None, Some(p)) => Self::preset(p),
             (None, None) => Self::default(),
         };
-        let cfg = overlay(&base, user, Self::NAME)?;
+        let cfg = overlay(&base, user, Self::NAME).map_err(|e| match e {
+            OverlayError::Tracker(e) => e,
+            OverlayError::Toml(e) => toml_error(Self::NAME, text, e),
+        })?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -150,11 +149,17 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
                 reason: format!("{}: {reason}", path.display()),
             },
             TrackerError::Toml {
-                tracker, source, ..
+                tracker,
+                line,
+                key,
+                error,
+                ..
             } => TrackerError::Toml {
                 tracker,
                 file: Some(path.display().to_string()),
-                source,
+                line,
+                key,
+                error,
             },
             other => other,
         })
@@ -166,28 +171,94 @@ pub trait TrackerConfig: Clone + Default + PartialEq + Serialize + DeserializeOw
     }
 }
 
+/// Why [`overlay`] failed: the preset itself (a bug), or the user's values.
+enum OverlayError {
+    Tracker(TrackerError),
+    Toml(toml::de::Error),
+}
+
 /// `user` laid over `base`: tables merge key by key (recursively), any other value replaces.
 fn overlay<C: TrackerConfig>(
     base: &C,
     user: toml::Table,
     tracker: &'static str,
-) -> Result<C, TrackerError> {
-    let toml::Value::Table(mut merged) = toml::Value::try_from(base)
-        .map_err(|e| TrackerError::config(tracker, format!("preset to TOML: {e}")))?
+) -> Result<C, OverlayError> {
+    let toml::Value::Table(mut merged) = toml::Value::try_from(base).map_err(|e| {
+        OverlayError::Tracker(TrackerError::config(
+            tracker,
+            format!("preset to TOML: {e}"),
+        ))
+    })?
     else {
-        return Err(TrackerError::config(
+        return Err(OverlayError::Tracker(TrackerError::config(
             tracker,
             "a configuration must serialise to a TOML table",
-        ));
+        )));
     };
     merge(&mut merged, user);
     toml::Value::Table(merged)
         .try_into()
-        .map_err(|source| TrackerError::Toml {
-            tracker,
-            file: None,
-            source: Box::new(source),
-        })
+        .map_err(OverlayError::Toml)
+}
+
+/// A TOML error located in the user's `text`: a syntax error has its own span; an error of
+/// the merged document (wrong type, unknown key) names a key path, which is looked up in the
+/// user's document for its line, since the merged document is no text the user ever saw.
+fn toml_error(tracker: &'static str, text: &str, e: toml::de::Error) -> TrackerError {
+    let line_of = |at: usize| text[..at.min(text.len())].matches('\n').count() + 1;
+    let (line, key) = if let Some(span) = e.span() {
+        (Some(line_of(span.start)), None)
+    } else {
+        let path = error_key_path(&e);
+        let line = key_offset(text, &path).map(line_of);
+        let key = (!path.is_empty()).then(|| path.join("."));
+        (line, key)
+    };
+    TrackerError::Toml {
+        tracker,
+        file: None,
+        line,
+        key,
+        error: Box::new(e),
+    }
+}
+
+/// The key path a deserialisation error is about: the table path it names (`in `model``)
+/// plus, for an unknown field, the field itself.
+fn error_key_path(e: &toml::de::Error) -> Vec<String> {
+    let full = e.to_string();
+    let mut path: Vec<String> = full
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("in `").and_then(|r| r.strip_suffix('`')))
+        .map(|p| p.split('.').map(str::to_owned).collect())
+        .unwrap_or_default();
+    if let Some(rest) = e.message().strip_prefix("unknown field `")
+        && let Some(field) = rest.split('`').next()
+    {
+        path.push(field.to_owned());
+    }
+    path
+}
+
+/// Byte offset of the key at `path` in the TOML `text` (its last segment), if present.
+fn key_offset(text: &str, path: &[String]) -> Option<usize> {
+    let doc = toml::de::DeTable::parse(text).ok()?;
+    let mut table = doc.get_ref();
+    let (last, parents) = path.split_last()?;
+    for p in parents {
+        let (_, v) = table
+            .iter()
+            .find(|(k, _)| k.get_ref().as_ref() == p.as_str())?;
+        match v.get_ref() {
+            toml::de::DeValue::Table(t) => table = t,
+            _ => return None,
+        }
+    }
+    table
+        .iter()
+        .find(|(k, _)| k.get_ref().as_ref() == last.as_str())
+        .map(|(k, _)| k.span().start)
 }
 
 fn merge(base: &mut toml::Table, user: toml::Table) {
@@ -231,14 +302,47 @@ pub(crate) fn check_convention<C: TrackerConfig + std::fmt::Debug>() {
         assert_eq!(C::from_toml(&named, None).unwrap(), c, "{named}");
         assert_eq!(C::from_toml("", Some(p)).unwrap(), c);
     }
-    let e = C::from_toml("no_such_key_in_any_config = 1", None).unwrap_err();
+    let e = C::from_toml("\n\nno_such_key_in_any_config = 1", None).unwrap_err();
     assert!(matches!(e, TrackerError::Toml { .. }), "{}: {e:?}", C::NAME);
+    // the user's line and key, not the merged document's
+    let text = e.to_string();
+    assert!(
+        text.contains("line 3, key `no_such_key_in_any_config`"),
+        "{}: {text}",
+        C::NAME
+    );
     assert!(C::Preset::parse("no-such-preset").is_err());
 }
 
 #[cfg(test)]
 mod tests {
     use super::check_convention;
+    use crate::TrackerConfig as _;
+
+    #[test]
+    fn errors_name_the_users_line_and_key() {
+        use crate::rgbd_person::RgbdPersonConfig;
+        let e = RgbdPersonConfig::from_toml("c_base = 0.8\n[model]\n\nn = \"three\"\n", None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("line 4, key `model.n`") && e.contains("invalid type"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+        let e = RgbdPersonConfig::from_toml("[model]\nnn = 3\n", None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("line 2, key `model.nn`") && e.contains("unknown field"),
+            "{e}"
+        );
+        // a syntax error keeps toml's own location
+        let e = RgbdPersonConfig::from_toml("c_base = \n", None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 1"), "{e}");
+    }
 
     #[test]
     fn every_tracker_configuration_follows_the_convention() {

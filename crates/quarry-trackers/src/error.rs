@@ -37,16 +37,26 @@ pub enum TrackerError {
         reason: String,
     },
     /// A TOML configuration that does not parse or does not fit the tracker's configuration
-    /// (unknown key, wrong type, ...).
-    #[error("{tracker} configuration {}: {source}", file.as_deref().unwrap_or("TOML"))]
+    /// (unknown key, wrong type, ...). The line and the key are the user's, in the user's file
+    /// (not in the preset the file is laid over), where they could be found.
+    #[error(
+        "{tracker} configuration {}{}{}: {}",
+        file.as_deref().unwrap_or("TOML"),
+        line.map(|l| format!(", line {l}")).unwrap_or_default(),
+        key.as_deref().map(|k| format!(", key `{k}`")).unwrap_or_default(),
+        toml_message(error)
+    )]
     Toml {
         /// Which tracker's configuration.
         tracker: &'static str,
         /// The file it was read from, when it was.
         file: Option<String>,
-        /// The TOML error (with line and column; boxed: it is large and rare).
-        #[source]
-        source: Box<toml::de::Error>,
+        /// The 1-based line of the offending key or value in the user's text, when known.
+        line: Option<usize>,
+        /// The dotted path of the offending key (`model.n`), when known.
+        key: Option<String>,
+        /// The TOML error (boxed: it is large and rare).
+        error: Box<toml::de::Error>,
     },
     /// A preset name that the tracker does not have.
     #[error("unknown {tracker} preset {name:?} (expected one of: {expected})")]
@@ -90,5 +100,15 @@ impl TrackerError {
             tracker,
             reason: reason.into(),
         }
+    }
+}
+
+/// The TOML error's message on one line: a syntax error keeps its own caret drawing of the
+/// line; a deserialisation error is just its message (the key and line are said separately).
+fn toml_message(e: &toml::de::Error) -> String {
+    if e.span().is_some() {
+        e.to_string().trim_end().to_owned()
+    } else {
+        e.message().to_owned()
     }
 }

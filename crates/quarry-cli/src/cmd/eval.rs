@@ -22,6 +22,10 @@ pub enum StyleArg {
     Mot16,
 }
 
+/// The largest `--dist`: far beyond any scene, and small enough that HOTA's similarity scale
+/// (twice the threshold) stays finite.
+const MAX_DIST: f64 = 1e12;
+
 /// Arguments of `quarry eval`.
 #[derive(Debug, Args)]
 #[command(
@@ -214,6 +218,17 @@ pub fn run(args: &EvalArgs, out: &Output) -> CmdResult {
         StyleArg::Mot15 => GtStyle::Mot15,
         StyleArg::Mot16 => GtStyle::Mot16,
     };
+    if let Some(d) = args.dist
+        && !(d.is_finite() && d > 0.0 && d <= MAX_DIST)
+    {
+        return Err(format!(
+            "--dist {d}: expected a distance in world units (metres in MOTChallenge) > 0 and at most {MAX_DIST:e}"
+        )
+        .into());
+    }
+    if !(args.iou > 0.0 && args.iou <= 1.0) {
+        return Err(format!("--iou {}: expected an IoU in (0, 1]", args.iou).into());
+    }
     let gt = read_gt_file(&args.gt, style)
         .map_err(|e| format!("ground truth {}: {e}", args.gt.display()))?;
     let res =

@@ -198,6 +198,10 @@ pub struct RgbdPersonConfig {
     pub gate_chi2: Option<f64>,
 }
 
+/// The largest image side the intrinsics may declare (pixels): well above any RGB-D camera
+/// (Kinect 640 x 480, Azure Kinect 3840 x 2160).
+pub const MAX_IMAGE_SIDE: u32 = 16_384;
+
 /// [`PinholeIntrinsics`] in the configuration, with unknown keys refused.
 #[derive(Serialize, Deserialize)]
 #[serde(remote = "PinholeIntrinsics", deny_unknown_fields)]
@@ -409,6 +413,12 @@ impl TrackerConfig for RgbdPersonConfig {
         if ![k.fx, k.fy, k.cx, k.cy].iter().all(|v| v.is_finite()) || k.fx <= 0.0 || k.fy <= 0.0 {
             return bad("intrinsics must be finite, f > 0".into());
         }
+        if !(1..=MAX_IMAGE_SIDE).contains(&k.width) || !(1..=MAX_IMAGE_SIDE).contains(&k.height) {
+            return bad(format!(
+                "intrinsics width and height must be in 1..={MAX_IMAGE_SIDE} pixels, got {}x{}",
+                k.width, k.height
+            ));
+        }
         if self.mount.tilt != 0.0 || !self.mount.t.iter().all(|v| v.is_finite()) {
             return bad(
                 "camera mount: finite translation and tilt = 0 (tilt is not implemented)".into(),
@@ -533,6 +543,18 @@ mod tests {
             RgbdPersonConfig::from_toml("preset = \"strict\"", Some(Preset::Baseline)).is_err()
         );
         assert!(RgbdPersonConfig::from_toml("preset = \"sideways\"", None).is_err());
+    }
+
+    #[test]
+    fn intrinsics_of_size_zero_or_absurd_size_are_errors() {
+        for (w, h) in [(0, 480), (640, 0), (0, 0), (MAX_IMAGE_SIDE + 1, 480)] {
+            let toml = format!("[intrinsics]\nwidth = {w}\nheight = {h}");
+            let e = RgbdPersonConfig::from_toml(&toml, None).unwrap_err();
+            assert!(e.to_string().contains("width and height"), "{w}x{h}: {e}");
+        }
+        assert!(
+            RgbdPersonConfig::from_toml("[intrinsics]\nwidth = 320\nheight = 240", None).is_ok()
+        );
     }
 
     #[test]

@@ -67,7 +67,7 @@ mod occlusion;
 mod select;
 mod tracker;
 
-pub use config::{Preset, RgbdPersonConfig, ScaleRule};
+pub use config::{MAX_IMAGE_SIDE, Preset, RgbdPersonConfig, ScaleRule};
 pub use occlusion::OcclusionState;
 pub use select::DetectionTier;
 pub use tracker::{RgbdPersonTracker, TrackOutput};
