@@ -54,18 +54,17 @@ impl Border {
                 if len == 1 {
                     return 0;
                 }
-                let delta = isize::from(self == Border::Reflect101);
-                let mut p = p;
-                // Reflect back and forth until inside (terminates: every step moves p towards
-                // the interval, at least by one when delta = 0 and len >= 2).
-                while !(0..n).contains(&p) {
-                    if p < 0 {
-                        p = -p - 1 + delta;
-                    } else {
-                        p = n - 1 - (p - n) - delta;
-                    }
-                }
-                p as usize
+                // the repeated reflection is periodic: period 2(n - 1) for reflect-101 (the edge
+                // pixel is not repeated), 2n for reflect. Closed form, so that a kernel much wider
+                // than the image costs one step per tap, not one per reflection (`segment
+                // --sigma 8000` on a 2-pixel-high image took minutes with the loop).
+                let (period, last) = if self == Border::Reflect101 {
+                    (2 * (n - 1), 0)
+                } else {
+                    (2 * n, 1)
+                };
+                let q = p.rem_euclid(period);
+                (if q < n { q } else { period - last - q }) as usize
             }
         }
     }
@@ -85,12 +84,19 @@ impl GaussianKernel {
     /// unbounded buffers.
     pub const MAX_SIZE: usize = 1 << 16;
 
+    /// Largest sigma whose OpenCV kernel ([`Self::opencv_size`]) fits in [`Self::MAX_SIZE`]
+    /// taps: (MAX_SIZE − 2) / 8 = 8191.75 pixels (a kernel of 65 535 taps).
+    pub const MAX_SIGMA: f64 = (Self::MAX_SIZE as f64 - 2.0) / 8.0;
+
     /// OpenCV's kernel size for float images: `round(8σ + 1) | 1` (radius ≈ 4σ).
     pub fn opencv_size(sigma: f64) -> Result<usize, VisionError> {
         check_sigma(sigma)?;
         let s = (sigma * 8.0 + 1.0).round();
-        if s > Self::MAX_SIZE as f64 {
-            return Err(VisionError::InvalidSigma(sigma));
+        if s > Self::MAX_SIZE as f64 || (s as usize) | 1 > Self::MAX_SIZE {
+            return Err(VisionError::SigmaTooLarge {
+                sigma,
+                max: Self::MAX_SIGMA,
+            });
         }
         Ok((s as usize) | 1)
     }
@@ -562,6 +568,46 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// OpenCV's `borderInterpolate` loop, reflection by reflection.
+    fn reflect_loop(p: isize, len: usize, delta: isize) -> usize {
+        let n = len as isize;
+        let mut p = p;
+        while !(0..n).contains(&p) {
+            p = if p < 0 {
+                -p - 1 + delta
+            } else {
+                n - 1 - (p - n) - delta
+            };
+        }
+        p as usize
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn closed_form_reflection_equals_opencvs_loop(p in -5000isize..5000, len in 2usize..40) {
+            proptest::prop_assert_eq!(Border::Reflect101.interpolate(p, len), reflect_loop(p, len, 1));
+            proptest::prop_assert_eq!(Border::Reflect.interpolate(p, len), reflect_loop(p, len, 0));
+        }
+    }
+
+    #[test]
+    fn a_kernel_much_wider_than_the_image_is_cheap_and_a_too_wide_one_is_named() {
+        // sigma 8000 on a 2-pixel-high image: 64 001 taps, each reflected in one step
+        let img = Plane::from_fn(40, 2, |x, y| (x + 3 * y) as f64);
+        let out = gaussian_blur_f64(&img, 8000.0).unwrap();
+        let mean = img.data.iter().sum::<f64>() / 80.0;
+        assert!(
+            out.data.iter().all(|v| (v - mean).abs() < 1.0),
+            "{:?}",
+            out.data
+        );
+        match GaussianKernel::new(1e6) {
+            Err(VisionError::SigmaTooLarge { max, .. }) => assert_eq!(max, 8191.75),
+            other => panic!("{other:?}"),
+        }
+        assert!(GaussianKernel::new(GaussianKernel::MAX_SIGMA).is_ok());
     }
 
     #[test]

@@ -35,6 +35,16 @@ pub enum VisionError {
     /// A blur sigma that is not finite and positive.
     #[error("invalid sigma {0}: must be finite and > 0")]
     InvalidSigma(f64),
+    /// A blur sigma whose kernel would be wider than the largest supported one.
+    #[error(
+        "sigma {sigma} is too large: at most {max} pixels (the kernel has round(8 sigma + 1) taps)"
+    )]
+    SigmaTooLarge {
+        /// The sigma given.
+        sigma: f64,
+        /// The largest accepted sigma.
+        max: f64,
+    },
     /// A NaN or infinite pixel.
     #[error("non-finite pixel in {0}")]
     NonFinite(&'static str),

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use clap::Args;
 use image::{Rgb, RgbImage};
-use quarry_core::{BBox, EgoMotion, Plane, SingleTargetTracker, Stamp};
+use quarry_core::{BBox, EgoMotion, PinholeIntrinsics, Plane, SingleTargetTracker, Stamp};
 use quarry_data::ptb::{DepthFormat, PtbSequence, depth_metres};
 use quarry_repro::rgbd::{OdometryFeed, ScenarioSummary, run_scenario, run_scenario_frames};
 use quarry_sim::rgbd::{RgbdScene, ScenarioId};
@@ -35,8 +35,10 @@ a sequence in the Princeton Tracking Benchmark layout (--sequence DIR): DIR/rgb/
 DIR/depth/*.png paired by the last integer in the file name, depth 16-bit with PTB's 3-bit \
 circular shift (--depth-format ptb, the default) or plain millimetres (--depth-format mm); the \
 first box from --init x,y,w,h (top-left, pixels) or DIR/init.txt. Without odometry the MEKF \
-runs with no ego-motion. Real sequences use the default Kinect intrinsics unless --config sets \
-them.
+runs with no ego-motion. Real sequences use the default Kinect intrinsics (f = 525 px, the \
+principal point moved to the frame's centre) unless --config sets them in an [intrinsics] table; \
+intrinsics that --config sets must have the frames' width and height, or the run stops with an \
+error.
 
 Configuration: --preset NAME picks a named configuration (default paper; the list is under \
 --preset: the paper, strict, the whole-target baseline and the one-switch ablations of spec \
@@ -108,8 +110,7 @@ fn parse_box(s: &str) -> Result<BBox, CmdError> {
 
 /// Reads one depth PNG (u16) into metres.
 fn load_depth(p: &Path, format: DepthFormat) -> Result<Plane<f32>, CmdError> {
-    let img = image::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
-    let img = img.to_luma16();
+    let img = quarry_vision::io::open_image(p)?.to_luma16();
     let (w, h) = img.dimensions();
     Ok(depth_metres(&img.into_raw(), w, h, format)?)
 }
@@ -207,6 +208,49 @@ impl Writer {
         std::fs::write(self.dir.join("boxes.txt"), &self.mot)?;
         Ok(())
     }
+}
+
+/// Whether the `--config` file sets the camera intrinsics itself (an `[intrinsics]` table):
+/// then they must match the frames; otherwise the default intrinsics are fitted to them.
+fn intrinsics_given(args: &RgbdArgs) -> Result<bool, CmdError> {
+    let Some(path) = &args.cfg.config else {
+        return Ok(false);
+    };
+    // the file was read and validated by `config` already (1 MiB cap), so this cannot grow
+    let text = std::fs::read_to_string(path).map_err(crate::output::at(path))?;
+    let table: toml::Table = text
+        .parse()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(table.contains_key("intrinsics"))
+}
+
+/// The intrinsics of a real sequence of `w` x `h` frames: the configured ones, which must be
+/// for that size when the config file set them, or the default focal length with the
+/// principal point at the frame's centre.
+fn sequence_intrinsics(
+    cfg: &RgbdPersonConfig,
+    given: bool,
+    w: u32,
+    h: u32,
+) -> Result<PinholeIntrinsics, CmdError> {
+    let mut k = cfg.intrinsics;
+    if (k.width, k.height) == (w, h) {
+        return Ok(k);
+    }
+    if given {
+        return Err(format!(
+            "the [intrinsics] of --config are for {}x{} frames but the sequence's frames are \
+             {w}x{h}: set width = {w} and height = {h} (and the focal length and principal \
+             point of the camera that recorded them)",
+            k.width, k.height
+        )
+        .into());
+    }
+    k.width = w;
+    k.height = h;
+    k.cx = (f64::from(w) - 1.0) / 2.0;
+    k.cy = (f64::from(h) - 1.0) / 2.0;
+    Ok(k)
 }
 
 /// The configuration of `--preset` / `--baseline` and `--config`, validated.
@@ -320,14 +364,13 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
     } else {
         seq.init_box().map_err(|e| format!("no --init and {e}"))?
     };
+    let given = intrinsics_given(args)?;
     let mut tr: Option<RgbdPersonTracker> = None;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
     let (mut total_ms, mut n) = (0.0, 0usize);
     for (k, f) in seq.frames.iter().enumerate() {
         let (num, rp, dp) = (f.number, &f.rgb, &f.depth);
-        let rgb = image::open(rp)
-            .map_err(|e| format!("{}: {e}", rp.display()))?
-            .to_rgb8();
+        let rgb = quarry_vision::io::open_image(rp)?.to_rgb8();
         let depth = load_depth(dp, format)?;
         let (w, h) = rgb.dimensions();
         if depth.dimensions() != (w, h) {
@@ -349,12 +392,7 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
             }
         } else {
             let mut c = cfg.clone();
-            if (c.intrinsics.width, c.intrinsics.height) != (w, h) {
-                c.intrinsics.width = w;
-                c.intrinsics.height = h;
-                c.intrinsics.cx = (f64::from(w) - 1.0) / 2.0;
-                c.intrinsics.cy = (f64::from(h) - 1.0) / 2.0;
-            }
+            c.intrinsics = sequence_intrinsics(cfg, given, w, h)?;
             let mut t = RgbdPersonTracker::new(c)?;
             t.init(stamp, &frame, init)?;
             if let Some(wr) = writer.as_mut() {
@@ -532,6 +570,38 @@ mod tests {
         let e = cfg(&["--config", &typo]).unwrap_err();
         assert!(e.to_string().contains("modle"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn intrinsics_set_by_the_config_must_match_the_frames() {
+        let root = std::env::temp_dir().join(format!("quarry-rgbd-k-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let seq = root.join("seq");
+        write_ptb(&seq, 2, true);
+        let (w, h) = image::image_dimensions(seq.join("rgb/r-1000-1.png")).unwrap();
+        let toml = |name: &str, text: String| {
+            let p = root.join(name);
+            std::fs::write(&p, text).unwrap();
+            p
+        };
+        let mut a = args(&seq, None);
+        // a config that sets intrinsics for another camera: an error naming both sizes
+        a.cfg.config = Some(toml("vga.toml", "[intrinsics]\nfx = 500.0\n".into()));
+        let e = run_sequence(&a, &seq, &config(&a).unwrap(), &Output { json: true }).unwrap_err();
+        assert!(
+            e.to_string().contains(&format!("{w}x{h}")) && e.to_string().contains("640x480"),
+            "{e}"
+        );
+        // the same camera at the frames' size runs
+        let text =
+            format!("[intrinsics]\nfx = 500.0\nwidth = {w}\nheight = {h}\ncx = 40.0\ncy = 30.0\n");
+        a.cfg.config = Some(toml("fit.toml", text));
+        run_sequence(&a, &seq, &config(&a).unwrap(), &Output { json: true }).unwrap();
+        // no [intrinsics]: the defaults are fitted to the frames
+        let k = sequence_intrinsics(&RgbdPersonConfig::paper(), false, w, h).unwrap();
+        assert_eq!((k.width, k.height, k.fx), (w, h, 525.0));
+        assert!((k.cx - (f64::from(w) - 1.0) / 2.0).abs() < 1e-12);
+        let _ = std::fs::remove_dir_all(&root);
     }
 
     #[test]
