@@ -110,8 +110,8 @@ pub struct LidarArgs {
     /// person position error (RMSE, nearest track within d_match).
     #[arg(long)]
     pub legs: Option<PathBuf>,
-    /// With --scans: skip (and count) malformed rows and rows whose stamp goes backwards instead
-    /// of stopping at the first one.
+    /// With --scans: skip (and count) malformed rows and rows whose stamp goes backwards or
+    /// repeats the previous row's (a duplicated row) instead of stopping at the first one.
     #[arg(long)]
     pub skip_bad_rows: bool,
 }
@@ -350,6 +350,8 @@ pub struct RecordedSummary {
     pub skipped_bad_rows: u64,
     /// CSV rows or scans skipped because their stamp went backwards.
     pub skipped_backwards: u64,
+    /// CSV rows or scans skipped because their stamp repeated the previous one (duplicates).
+    pub skipped_repeated: u64,
     /// Beams marked invalid (NaN, inf, out of range).
     pub invalid_beams: u64,
     /// Scans used only to fill the background window (not tracked).
@@ -392,7 +394,16 @@ fn run_recorded_cmd(
             .unwrap_or_else(|| Path::new("."))
             .join("scan_meta.json")
     });
-    let meta_text = std::fs::read_to_string(&meta).map_err(at(&meta))?;
+    // the scans first: a missing CSV is reported as such, not as a missing scan_meta.json
+    // beside it
+    std::fs::File::open(scans)
+        .map_err(|e| format!("{}: cannot read the scans CSV: {e}", scans.display()))?;
+    let meta_text = std::fs::read_to_string(&meta).map_err(|e| {
+        format!(
+            "{}: cannot read the scanner geometry (a scan_meta.json; give another with --meta): {e}",
+            meta.display()
+        )
+    })?;
     let geometry =
         parse_scan_meta(&meta_text, &key).map_err(|e| format!("{}: {e}", meta.display()))?;
     let policy = if args.skip_bad_rows {
@@ -428,6 +439,7 @@ fn run_recorded_cmd(
         frames: run.frames.len(),
         skipped_bad_rows: stats.skipped_bad_rows,
         skipped_backwards: stats.skipped_backwards + run.skipped_backwards as u64,
+        skipped_repeated: stats.skipped_repeated + run.skipped_repeated as u64,
         invalid_beams: stats.invalid_beams,
         warm_up_scans: run.warm_up_scans,
         gaps: run.gaps,
@@ -468,9 +480,10 @@ fn run_recorded_cmd(
             summary.warm_up_scans
         );
         let _ = writeln!(t,
-            "  skipped: {} malformed rows, {} backwards stamps; {} invalid beams; {} gaps (longest {:.3} s)",
+            "  skipped: {} malformed rows, {} backwards stamps, {} repeated stamps; {} invalid beams; {} gaps (longest {:.3} s)",
             summary.skipped_bad_rows,
             summary.skipped_backwards,
+            summary.skipped_repeated,
             summary.invalid_beams,
             summary.gaps,
             summary.longest_gap_s

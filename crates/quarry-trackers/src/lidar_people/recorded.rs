@@ -6,7 +6,8 @@
 //! of its own (one scanner: nothing to fuse; the frame time is the scan stamp, so Δt is the
 //! scanner's period, not 50 ms). What is skipped, and counted in [`RecordedRun`]:
 //! - a scan whose stamp is earlier than the previous accepted one (`skipped_backwards`; the
-//!   background model would reject it);
+//!   background model would reject it), or equal to it (`skipped_repeated`: a duplicated scan;
+//!   time standing still would make every track's Δt zero);
 //! - a scan with the wrong beam count (`skipped_bad_scans`);
 //! - warm-up: the first `window_m / 2` scans are classified (they fill the background window)
 //!   but not tracked — until then every beam is dynamic by rule (3) (`warm_up_scans`; their
@@ -44,6 +45,8 @@ pub struct RecordedRun {
     pub frames: Vec<RecordedFrame>,
     /// Scans skipped because their stamp went backwards.
     pub skipped_backwards: usize,
+    /// Scans skipped because their stamp repeated the previous accepted one's.
+    pub skipped_repeated: usize,
     /// Scans skipped because their beam count or geometry differs from the run's.
     pub skipped_bad_scans: usize,
     /// Scans classified but not tracked while the background window filled.
@@ -128,6 +131,10 @@ pub fn run_recorded(
         if let Some(t) = last_t {
             if scan.t < t {
                 run.skipped_backwards += 1;
+                continue;
+            }
+            if scan.t == t {
+                run.skipped_repeated += 1;
                 continue;
             }
             let dt = (scan.t.0 - t.0) as f64;
