@@ -85,6 +85,20 @@ impl Calibration {
     }
 }
 
+/// Largest background window `window_m` (scans; 100 s at 40 Hz): each scanner keeps
+/// `window_m` ranges per beam.
+pub const MAX_WINDOW_M: usize = 4000;
+/// Largest number of contour model points `k_m`.
+pub const MAX_K_M: usize = 4096;
+/// Largest ICP iteration cap `icp_it_max`.
+pub const MAX_ICP_IT: u32 = 10_000;
+/// Largest minimum support `min_num_point`.
+pub const MAX_MIN_NUM_POINT: usize = 100_000;
+/// Largest value of a time parameter (`t_warm_s`, `t_relearn_s`, `frame_period_s`,
+/// `tau_sync_s`, `l_max_s`), seconds: ten minutes. The warm-up keeps `t_warm_s` worth of scans
+/// per scanner (about 100 MB for a 40 Hz, 1081-beam scanner at the limit).
+pub const MAX_SECONDS: f64 = 600.0;
+
 /// Every parameter of spec 003 §3. Tags: **\[P\]** paper, **\[D\]** UTM-30LX datasheet, **\[Q\]**
 /// proposed by the spec (with the reason given there).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -393,6 +407,30 @@ impl crate::TrackerConfig for LidarPeopleConfig {
                 ));
             }
         }
+        // upper bounds where memory or work grows with the value (per scanner: the warm-up
+        // buffer holds t_warm_s worth of scans, the window window_m scans, the model k_m points)
+        for (name, v, max) in [
+            ("window_m", self.window_m as f64, MAX_WINDOW_M as f64),
+            ("k_m", self.k_m as f64, MAX_K_M as f64),
+            ("icp_it_max", f64::from(self.icp_it_max), MAX_ICP_IT as f64),
+            (
+                "min_num_point",
+                self.min_num_point as f64,
+                MAX_MIN_NUM_POINT as f64,
+            ),
+            ("t_warm_s", self.t_warm_s, MAX_SECONDS),
+            ("t_relearn_s", self.t_relearn_s, MAX_SECONDS),
+            ("frame_period_s", self.frame_period_s, MAX_SECONDS),
+            ("tau_sync_s", self.tau_sync_s, MAX_SECONDS),
+            ("l_max_s", self.l_max_s, MAX_SECONDS),
+        ] {
+            if v > max {
+                return Err(TrackerError::config(
+                    "lidar_people",
+                    format!("{name} must be at most {max}, got {v}"),
+                ));
+            }
+        }
         if let Some((i, p)) = self
             .calib_rough_poses
             .iter()
@@ -424,6 +462,25 @@ impl crate::TrackerConfig for LidarPeopleConfig {
 mod tests {
     use super::*;
     use crate::TrackerConfig;
+
+    #[test]
+    fn values_that_would_allocate_without_bound_are_refused_by_name() {
+        for (toml, name) in [
+            ("k_m = 1000000000", "k_m"),
+            ("window_m = 1000000000", "window_m"),
+            ("t_warm_s = 1e12", "t_warm_s"),
+            ("t_relearn_s = 1e9", "t_relearn_s"),
+            ("icp_it_max = 4000000000", "icp_it_max"),
+        ] {
+            let e = LidarPeopleConfig::from_toml(toml, None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(name) && e.contains("at most"), "{toml}: {e}");
+        }
+        for p in [Preset::Faithful, Preset::Literal, Preset::KfGnn] {
+            LidarPeopleConfig::preset(p).validate().unwrap();
+        }
+    }
 
     #[test]
     fn toml_round_trip_and_defaults() {

@@ -50,7 +50,10 @@ pub use calibration::{
     CalibrationReport, FREE_SPACE_MARGIN_M, PendingCalibration, ScannerCalibration, ScannerInfo,
     calibrate_backgrounds, pose_error, reference_index,
 };
-pub use config::{Calibration, FusionTime, LidarPeopleConfig, Preset};
+pub use config::{
+    Calibration, FusionTime, LidarPeopleConfig, MAX_ICP_IT, MAX_K_M, MAX_MIN_NUM_POINT,
+    MAX_SECONDS, MAX_WINDOW_M, Preset,
+};
 pub use pipeline::{ClientPipeline, DynamicScan, Fusion, RowSource, ServerPipeline};
 pub use recorded::{RecordedFrame, RecordedRun, run_recorded};
 pub use tracker::{
