@@ -70,7 +70,10 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
     let out = Output {
         json: cli.global.json,
     };
@@ -88,9 +91,44 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<cmd::lidar_net::Interrupted>() => {
+            // the summary (and, with --json, its one object) is out already
+            eprintln!("{e}");
+            ExitCode::from(cmd::lidar_net::INTERRUPTED_EXIT)
+        }
         Err(e) => {
             out.error(e.as_ref());
             ExitCode::FAILURE
         }
     }
+}
+
+/// A command line clap could not parse: `--help` and `--version` print as usual (exit 0); any
+/// other error prints clap's message on stderr and, when `--json` is among the arguments, also
+/// `{"error": "..."}` on stdout, so that a script asking for JSON always gets one object. Exit
+/// status 2, as clap's own usage errors.
+fn usage_error(e: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        e.exit();
+    }
+    let _ = e.print();
+    if std::env::args_os().skip(1).any(|a| a == "--json") {
+        let msg = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+            "no command given: run `quarry --help` for the list".to_string()
+        } else {
+            usage_text(e)
+        };
+        println!("{}", serde_json::json!({ "error": msg }));
+    }
+    ExitCode::from(2)
+}
+
+/// clap's error message without the `error: ` prefix, the usage block and the `--help` hint:
+/// the first paragraph, on one line.
+fn usage_text(e: &clap::Error) -> String {
+    let rendered = e.render().to_string();
+    let first = rendered.split("\n\n").next().unwrap_or_default();
+    let first = first.trim().strip_prefix("error: ").unwrap_or(first.trim());
+    first.split_whitespace().collect::<Vec<_>>().join(" ")
 }

@@ -266,3 +266,211 @@ fn lidar_scenario_runs_a_named_simulator_scenario() {
     let (_, stdout, _) = quarry(&["lidar", "--help"]);
     assert!(stdout.contains("--scenario") && stdout.contains("stop_and_go"));
 }
+
+/// With `--json`, a command line that does not parse still prints exactly one JSON object on
+/// stdout (`{"error": ...}` naming the problem), exit status 2; without `--json`, stdout stays
+/// empty; `--help` still prints help and exits 0.
+#[test]
+fn json_usage_errors_print_one_error_object() {
+    for args in [
+        &["eval", "--json", "--frobnicate"][..],
+        &["slamot", "--particles", "many", "--json"][..],
+        &["no-such-command", "--json"][..],
+        &["--json"][..],
+    ] {
+        let (code, stdout, stderr) = quarry(args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        let v: Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|e| {
+            panic!("{args:?}: stdout is not one JSON object ({e}): {stdout:?}")
+        });
+        let msg = v["error"].as_str().unwrap();
+        assert!(!msg.is_empty() && !msg.starts_with("error:"), "{msg}");
+        assert!(!stderr.is_empty());
+    }
+    let (_, stdout, _) = quarry(&["slamot", "--particles", "many", "--json"]);
+    assert!(stdout.contains("many"), "{stdout}");
+    let (code, stdout, _) = quarry(&["eval", "--frobnicate"]);
+    assert_eq!((code, stdout.as_str()), (2, ""));
+    let (code, stdout, _) = quarry(&["eval", "--help", "--json"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("--gt"));
+}
+
+/// `quarry eval`'s thresholds are checked before any file is read, with errors that name the
+/// flag (not an internal parameter such as HOTA's similarity scale).
+#[test]
+fn eval_thresholds_are_refused_naming_the_flag() {
+    for (flag, v) in [
+        ("--dist", "1e308"),
+        ("--dist", "0"),
+        ("--dist", "nan"),
+        ("--iou", "1.5"),
+        ("--iou", "nan"),
+    ] {
+        let (code, _, stderr) = quarry(&["eval", "--gt", "nope.txt", "--res", "nope.txt", flag, v]);
+        assert_eq!(code, 1, "{flag} {v}");
+        assert!(
+            stderr.contains(flag) && !stderr.contains("zero_at"),
+            "{flag} {v}: {stderr}"
+        );
+    }
+}
+
+#[test]
+fn a_missing_scans_csv_is_named_as_such() {
+    let d = tmpdir("missing-scans");
+    let p = d.join("nowhere_scans.csv");
+    let (code, _, stderr) = quarry(&["lidar", "--scans", p.to_str().unwrap()]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("cannot read the scans CSV") && !stderr.contains("scan_meta"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn broken_and_oversized_images_are_refused() {
+    let d = tmpdir("bad-images");
+    let img =
+        image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([(x * 3) as u8, (y * 5) as u8, 7]));
+    let jpg = d.join("frame.jpg");
+    img.save(&jpg).unwrap();
+    let bytes = std::fs::read(&jpg).unwrap();
+    let cut = d.join("cut.jpg");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let (code, _, stderr) = quarry(&["segment", jpg.to_str().unwrap(), "--sigma", "2"]);
+    assert_eq!(code, 0, "{stderr}");
+    for cmd in ["segment", "sift"] {
+        let (code, _, stderr) = quarry(&[cmd, cut.to_str().unwrap()]);
+        assert_eq!(code, 1, "{cmd}: {stderr}");
+        assert!(stderr.contains("truncated"), "{cmd}: {stderr}");
+    }
+    // a PNG declaring 100 000 x 100 000 RGB with almost no pixel data
+    let crc32 = |data: &[u8]| {
+        let mut crc = 0xFFFF_FFFFu32;
+        for &b in data {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    };
+    let mut png = vec![0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A];
+    let mut ihdr = 100_000u32.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    for (kind, data) in [
+        (*b"IHDR", ihdr),
+        (
+            *b"IDAT",
+            vec![0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01],
+        ),
+        (*b"IEND", vec![]),
+    ] {
+        png.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(&data);
+        png.extend_from_slice(&body);
+        png.extend_from_slice(&crc32(&body).to_be_bytes());
+    }
+    let huge = d.join("huge.png");
+    std::fs::write(&huge, &png).unwrap();
+    let (code, _, stderr) = quarry(&["segment", huge.to_str().unwrap()]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("at most 16384"), "{stderr}");
+    let (code, _, stderr) = quarry(&["segment", jpg.to_str().unwrap(), "--sigma", "1e6"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("too large"), "{stderr}");
+}
+
+/// A free TCP port on 127.0.0.1 (bound and released; the test binds it again at once).
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Waits for `child` at most `limit`, killing it (and failing) if it is still running.
+fn wait_child(child: &mut std::process::Child, limit: std::time::Duration) -> i32 {
+    let t0 = std::time::Instant::now();
+    loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            return st.code().unwrap_or(-1);
+        }
+        if t0.elapsed() > limit {
+            let _ = child.kill();
+            panic!("still running after {} s", limit.as_secs());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn lidar_server_refuses_an_unknown_sensor_and_stops_cleanly_on_sigterm() {
+    use std::process::Stdio;
+    let d = tmpdir("sigterm");
+    let port = free_port();
+    let ep = format!("tcp/127.0.0.1:{port}");
+    // a server of one scanner, id 5
+    let sensors = d.join("sensors.json");
+    std::fs::write(
+        &sensors,
+        r#"[{"id": 5, "x": 0.0, "y": 0.0, "theta_deg": 0.0}]"#,
+    )
+    .unwrap();
+    let mut server = Command::new(env!("CARGO_BIN_EXE_quarry"))
+        .args(["lidar-server", "--listen", &ep, "--json", "--sensors"])
+        .arg(&sensors)
+        .arg("--out")
+        .arg(&d)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // the server is up once its zenoh listener accepts connections
+    let t0 = std::time::Instant::now();
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            t0.elapsed() < std::time::Duration::from_mins(2),
+            "the server never listened"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    // a node (the simulated room's scanner 0) the server does not have is told why at once,
+    // not after its 120 s wait
+    let (code, _, stderr) = quarry(&[
+        "lidar-node",
+        "--connect",
+        &ep,
+        "--max-scans",
+        "5",
+        "--wait-server",
+        "120",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("not one of this server's sensors"),
+        "{stderr}"
+    );
+    let st = Command::new("kill")
+        .args(["-TERM", &server.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let code = wait_child(&mut server, std::time::Duration::from_mins(2));
+    let mut out = String::new();
+    std::io::Read::read_to_string(server.stdout.as_mut().unwrap(), &mut out).unwrap();
+    assert_eq!(code, 130, "stdout: {out}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    assert_eq!(v["interrupted"], true, "{v}");
+    assert_eq!(v["refused"][0][0], 0, "{v}");
+    assert!(d.join("server.json").exists());
+}

@@ -32,6 +32,16 @@ pub enum NetError {
     /// Nothing arrived in time.
     #[error("timeout: {0}")]
     Timeout(String),
+    /// The server refused this node (an unknown sensor id, the other clock mode), with its
+    /// reason.
+    #[error("refused by the server: {0}")]
+    Refused(String),
+    /// The server stopped before this node was done (interrupted, or its duration elapsed).
+    #[error("{0}")]
+    ServerEnded(String),
+    /// Another server of the same kind already runs on this network: this one gives way.
+    #[error("{0}")]
+    Conflict(String),
     /// Reading a scan source or writing an output failed.
     #[error("i/o: {0}")]
     Io(String),

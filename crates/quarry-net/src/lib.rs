@@ -14,6 +14,8 @@
 //!   [`ScanSource`]: the simulated room or a recorded CSV).
 //! - [`server`]: `run_sim_server` (feature `sim`) and [`run_wall_server`], both over the
 //!   frame assembler and the tracker of `quarry_trackers::lidar_people`.
+//! - [`session`]: the join / welcome / refuse handshake, the server's beacon and end notice,
+//!   each carrying the server's session id (two servers, a restarted server);
 //! - [`envelope`]: the virtual-time step and end markers and the track message (decoders
 //!   fuzzed in `fuzz/`).
 //!
@@ -55,6 +57,7 @@ mod fusion;
 pub mod node;
 pub mod proto;
 pub mod server;
+pub mod session;
 pub mod transport;
 #[cfg(feature = "zenoh")]
 mod zenoh_transport;
@@ -62,12 +65,18 @@ mod zenoh_transport;
 pub use envelope::{EndOfStream, SimMessage, SimStep, TrackMessage};
 pub use error::{EnvelopeError, NetError};
 pub use fusion::{AssemblerFusion, encode_dynamic};
-pub use node::{CsvSource, NodeSummary, ScanSource, WallNodeOptions, run_wall_node};
+pub use node::{
+    CsvSource, MAX_SOURCE_GAP, NodeSummary, ScanSource, WallNodeOptions, run_wall_node,
+    wait_for_server,
+};
 #[cfg(feature = "sim")]
 pub use node::{SimSource, run_sim_node};
+pub use server::{
+    SensorSpec, SensorStatus, ServerRun, WallServerOptions, run_wall_server, run_wall_server_until,
+};
 #[cfg(feature = "sim")]
-pub use server::run_sim_server;
-pub use server::{SensorSpec, ServerRun, WallServerOptions, run_wall_server};
+pub use server::{run_sim_server, run_sim_server_until};
+pub use session::{ClockKind, Welcome};
 pub use transport::{LocalBus, Received, Subscription, Transport, key_matches, keys};
 #[cfg(feature = "zenoh")]
 pub use zenoh_transport::{ZenohOptions, ZenohTransport};

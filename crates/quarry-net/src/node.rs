@@ -13,10 +13,13 @@
 //!   duplicates are what the server's frame assembler handles.
 
 use crate::NetError;
-use crate::envelope::{EndOfStream, SimMessage, SimStep};
+#[cfg(feature = "sim")]
+use crate::envelope::SimStep;
+use crate::envelope::{EndOfStream, SimMessage};
 use crate::fusion::encode_dynamic;
 use crate::proto::wire::{Header, Hello, Kind, Message, Payload};
 use crate::proto::{ClockSync, SyncMode};
+use crate::session::{ClockKind, Welcome};
 use crate::transport::{Subscription, Transport, keys};
 use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
 use quarry_data::scans_csv::ScanCsvReader;
@@ -161,28 +164,129 @@ pub struct NodeSummary {
     pub offset_us: Option<f64>,
     /// Background subtraction time per scan, ms.
     pub client_ms_per_scan: f64,
+    /// Wall clock: times the node re-joined a restarted server.
+    pub rejoins: u64,
+    /// Wall clock: sync replies of another server (another session) ignored.
+    pub foreign_sync_replies: u64,
+    /// Wall clock: jumps of the source's stamps that re-anchored the pacing.
+    pub source_jumps: u64,
 }
 
-/// Joins the server: publishes a join request every 100 ms until the server's welcome arrives
-/// (so the route from this node to the server's subscriptions exists before any data is sent).
+/// Joins the server: publishes a join request (with this node's clock `mode`) every 100 ms
+/// until the server's welcome arrives (so the route from this node to the server's
+/// subscriptions exists before any data is sent). Returns the welcome (the server's session).
+/// A refusal (an id the server does not know, the other clock mode) is
+/// [`NetError::Refused`] with the server's reason, at once.
 pub fn wait_for_server(
     transport: &dyn Transport,
     id: SensorId,
+    mode: ClockKind,
     timeout: Duration,
-) -> Result<(), NetError> {
+) -> Result<Welcome, NetError> {
     let mut sub = transport.subscribe(&keys::welcome(id))?;
+    let mut refused = transport.subscribe(&keys::refuse(id))?;
     let t0 = Instant::now();
+    let join = crate::session::encode_join(mode);
     while t0.elapsed() < timeout {
-        transport.publish(&keys::join(id), b"join")?;
-        if sub.recv_timeout(Duration::from_millis(100))?.is_some() {
-            return Ok(());
+        transport.publish(&keys::join(id), &join)?;
+        if let Some(r) = refused.recv_timeout(Duration::ZERO)? {
+            return Err(NetError::Refused(crate::session::decode_refusal(
+                &r.payload,
+            )));
         }
+        if let Some(r) = sub.recv_timeout(Duration::from_millis(100))? {
+            // a server of an older version answers a bare "welcome": its own mode, session 0
+            let w = Welcome::decode(&r.payload).unwrap_or(Welcome { mode, session: 0 });
+            if w.mode != mode {
+                return Err(NetError::Refused(format!(
+                    "the server runs on the {} clock, this node on the {} clock: start both with the same --clock",
+                    w.mode, mode
+                )));
+            }
+            return Ok(w);
+        }
+    }
+    if let Some(r) = refused.recv_timeout(Duration::ZERO)? {
+        return Err(NetError::Refused(crate::session::decode_refusal(
+            &r.payload,
+        )));
     }
     Err(NetError::Timeout(format!(
         "the server did not answer the join of sensor {} within {:.1} s",
         id.0,
         timeout.as_secs_f64()
     )))
+}
+
+/// A node's watch on its server: the beacons (is it alive; has another server taken its
+/// place?) and the end notice.
+struct ServerWatch {
+    ready: Box<dyn Subscription>,
+    end: Box<dyn Subscription>,
+    session: u64,
+    last_mine: Instant,
+    /// The newest beacon of another server of this node's mode.
+    other: Option<(u64, Instant)>,
+    mode: ClockKind,
+}
+
+/// What the watch saw.
+enum Watch {
+    /// Nothing new.
+    Fine,
+    /// The server stopped early (its end notice).
+    Ended,
+    /// The joined server has been silent for over a second while another one of this mode
+    /// beacons: it was restarted (or replaced); re-join it.
+    Replaced,
+}
+
+impl ServerWatch {
+    fn new(transport: &dyn Transport, mode: ClockKind) -> Result<Self, NetError> {
+        Ok(Self {
+            ready: transport.subscribe(keys::SERVER_READY)?,
+            end: transport.subscribe(keys::SERVER_END)?,
+            session: 0,
+            last_mine: Instant::now(),
+            other: None,
+            mode,
+        })
+    }
+
+    fn joined(&mut self, w: Welcome) {
+        self.session = w.session;
+        self.last_mine = Instant::now();
+        self.other = None;
+    }
+
+    fn poll(&mut self) -> Result<Watch, NetError> {
+        while let Some(r) = self.end.recv_timeout(Duration::ZERO)? {
+            if crate::session::decode_end(&r.payload) == Some(self.session) {
+                return Ok(Watch::Ended);
+            }
+        }
+        while let Some(r) = self.ready.recv_timeout(Duration::ZERO)? {
+            let Some(b) = crate::session::Beacon::decode(&r.payload) else {
+                continue;
+            };
+            if b.session == self.session {
+                self.last_mine = Instant::now();
+            } else if b.mode == self.mode {
+                self.other = Some((b.session, Instant::now()));
+            }
+        }
+        let other_alive = self
+            .other
+            .is_some_and(|(_, t)| t.elapsed() < Duration::from_millis(500));
+        if self.session != 0 && other_alive && self.last_mine.elapsed() > Duration::from_secs(1) {
+            return Ok(Watch::Replaced);
+        }
+        Ok(Watch::Fine)
+    }
+
+    fn silent_for(&self) -> Duration {
+        self.last_mine.elapsed()
+    }
 }
 
 /// Publishes the end marker until the server acknowledges it on `ack` (every 200 ms, at most
@@ -250,7 +354,13 @@ pub fn run_sim_node(
     let id = src.sensor();
     let mut client = ClientPipeline::new(id, background_of(cfg, &src.geometry())?);
     let mut ack = transport.subscribe(&keys::end_ack(id))?;
-    wait_for_server(transport, id, wait_server)?;
+    let mut watch = ServerWatch::new(transport, ClockKind::Virtual)?;
+    watch.joined(wait_for_server(
+        transport,
+        id,
+        ClockKind::Virtual,
+        wait_server,
+    )?);
     trace(&format!("node {}: joined", id.0));
     let key = keys::sim(id);
     let mut sum = NodeSummary {
@@ -280,6 +390,9 @@ pub fn run_sim_node(
         });
         transport.publish(&key, &m.encode()?)?;
         step += 1;
+        if matches!(watch.poll()?, Watch::Ended) {
+            return Err(server_ended(id, sum.scans));
+        }
     }
     let end = SimMessage::End(EndOfStream {
         sensor: id,
@@ -346,6 +459,10 @@ impl LocalClock {
 
 struct Syncer {
     sync: ClockSync,
+    /// The joined server's session: replies of any other server are ignored.
+    session: u64,
+    /// Replies of other servers ignored.
+    foreign: u64,
     sub: Box<dyn Subscription>,
     req_key: String,
     id: SensorId,
@@ -393,8 +510,15 @@ impl Syncer {
         while let Some(r) = self.sub.recv_timeout(w)? {
             w = Duration::ZERO;
             let t4 = clock.now();
-            if let Ok(m) = Message::decode(&r.payload)
-                && let Payload::SyncReply { t1, t2, t3 } = m.payload
+            let Ok(m) = Message::decode(&r.payload) else {
+                continue;
+            };
+            // session 0: a server of an older version, which leaves t_capture zero
+            if self.session != 0 && m.header.t_capture.0 as u64 != self.session {
+                self.foreign += 1;
+                continue;
+            }
+            if let Payload::SyncReply { t1, t2, t3 } = m.payload
                 && m.header.sensor == self.id
                 && self
                     .sync
@@ -406,6 +530,65 @@ impl Syncer {
         }
         Ok(())
     }
+}
+
+/// The longest gap between two scans' source stamps that a wall-clock node waits for (a
+/// larger jump, or a stamp going backwards, re-anchors the pacing: counted in
+/// [`NodeSummary::source_jumps`]).
+pub const MAX_SOURCE_GAP: Duration = Duration::from_secs(10);
+
+/// The node's Hello (its geometry, spec §7.1).
+fn hello(id: SensorId, g: &ScanGeometry, t_send: TimeUs, window_m: u16) -> Message {
+    Message {
+        header: Header {
+            kind: Kind::Hello,
+            sensor: id,
+            seq: 0,
+            part: 0,
+            parts: 1,
+            flags: 0,
+            t_capture: TimeUs(0),
+            t_send,
+        },
+        payload: Payload::Hello(Hello {
+            n_beams: g.n_beams as u16,
+            front_step: (-g.angle_min / g.angle_increment)
+                .round()
+                .clamp(0.0, 65535.0) as u16,
+            slit_division: (std::f64::consts::TAU / g.angle_increment)
+                .round()
+                .clamp(0.0, 65535.0) as u16,
+            range_min_mm: (g.range_min * 1e3).round().clamp(0.0, 65535.0) as u16,
+            range_max_mm: (g.range_max * 1e3).round().clamp(0.0, 65535.0) as u16,
+            scan_period_us: (g.scan_period * 1e6).round().clamp(0.0, 4e9) as u32,
+            window_m,
+        }),
+    }
+}
+
+/// Runs sync exchanges for `warmup` before scans go out.
+fn warm_up(
+    syncer: &mut Syncer,
+    transport: &dyn Transport,
+    clock: &LocalClock,
+    warmup: Duration,
+) -> Result<(), NetError> {
+    let warm = Instant::now();
+    while warm.elapsed() < warmup {
+        syncer.service(transport, clock, Duration::from_millis(20))?;
+        // apply the estimate now, so that its first step (which clears CLOCK_SYNCED for one
+        // stamp) does not fall on a scan
+        let _ = syncer.sync.stamp(clock.now());
+    }
+    Ok(())
+}
+
+/// The error of a node whose server stopped first.
+fn server_ended(id: SensorId, scans: u64) -> NetError {
+    NetError::ServerEnded(format!(
+        "the server stopped its run (interrupted, or its --duration elapsed) while sensor {} was still sending, after {scans} scans",
+        id.0
+    ))
 }
 
 /// Wall-clock node over any [`ScanSource`]: Hello, clock sync warm-up, then every scan paced
@@ -426,6 +609,8 @@ pub fn run_wall_node(
     let clock = LocalClock::new();
     let mut syncer = Syncer {
         sync: ClockSync::new(opts.sync),
+        session: 0,
+        foreign: 0,
         sub: transport.subscribe(&keys::sync_reply(id))?,
         req_key: keys::sync_request(id),
         id,
@@ -434,42 +619,14 @@ pub fn run_wall_node(
         replies: 0,
     };
     let mut ack = transport.subscribe(&keys::end_ack(id))?;
-    wait_for_server(transport, id, opts.wait_server)?;
-    trace(&format!("node {}: joined", id.0));
+    let mut watch = ServerWatch::new(transport, ClockKind::Wall)?;
+    let w = wait_for_server(transport, id, ClockKind::Wall, opts.wait_server)?;
+    watch.joined(w);
+    syncer.session = w.session;
+    trace(&format!("node {}: joined session {:016x}", id.0, w.session));
     let key = keys::scan(id);
-    let hello = Message {
-        header: Header {
-            kind: Kind::Hello,
-            sensor: id,
-            seq: 0,
-            part: 0,
-            parts: 1,
-            flags: 0,
-            t_capture: TimeUs(0),
-            t_send: clock.now(),
-        },
-        payload: Payload::Hello(Hello {
-            n_beams: g.n_beams as u16,
-            front_step: (-g.angle_min / g.angle_increment)
-                .round()
-                .clamp(0.0, 65535.0) as u16,
-            slit_division: (std::f64::consts::TAU / g.angle_increment)
-                .round()
-                .clamp(0.0, 65535.0) as u16,
-            range_min_mm: (g.range_min * 1e3).round().clamp(0.0, 65535.0) as u16,
-            range_max_mm: (g.range_max * 1e3).round().clamp(0.0, 65535.0) as u16,
-            scan_period_us: (g.scan_period * 1e6).round().clamp(0.0, 4e9) as u32,
-            window_m: opts.window_m,
-        }),
-    };
-    transport.publish(&key, &hello.encode()?)?;
-    let warm = Instant::now();
-    while warm.elapsed() < opts.sync_warmup {
-        syncer.service(transport, &clock, Duration::from_millis(20))?;
-        // apply the estimate now, so that its first step (which clears CLOCK_SYNCED for one
-        // stamp) does not fall on a scan
-        let _ = syncer.sync.stamp(clock.now());
-    }
+    transport.publish(&key, &hello(id, &g, clock.now(), opts.window_m).encode()?)?;
+    warm_up(&mut syncer, transport, &clock, opts.sync_warmup)?;
     let mut sum = NodeSummary {
         sensor: id.0,
         ..NodeSummary::default()
@@ -479,11 +636,41 @@ pub fn run_wall_node(
     let mut seq = 0u32;
     let mut last_stamp = TimeUs(0);
     while opts.max_scans.is_none_or(|m| sum.scans < m) {
+        match watch.poll()? {
+            Watch::Fine => {}
+            Watch::Ended => return Err(server_ended(id, sum.scans)),
+            Watch::Replaced => {
+                // the server restarted: its clock and session are new. Join it, start the
+                // clock synchronisation afresh, say Hello (its assembler starts this sensor's
+                // sequence state anew) and pace from the next scan on.
+                trace(&format!(
+                    "node {}: the server was replaced; re-joining",
+                    id.0
+                ));
+                let w = wait_for_server(transport, id, ClockKind::Wall, opts.wait_server)?;
+                watch.joined(w);
+                syncer.session = w.session;
+                syncer.sync = ClockSync::new(opts.sync);
+                syncer.next_req = Instant::now();
+                transport.publish(&key, &hello(id, &g, clock.now(), opts.window_m).encode()?)?;
+                warm_up(&mut syncer, transport, &clock, opts.sync_warmup)?;
+                first = None;
+                sum.rejoins += 1;
+            }
+        }
         let Some((t_src, mut scan)) = source.next_scan()? else {
             break;
         };
-        // pace by the source clock
+        // pace by the source clock; a jump of the source's stamps (forwards by more than
+        // MAX_SOURCE_GAP, or backwards) re-anchors the pacing instead of sleeping for it
         let (s0, w0) = *first.get_or_insert((t_src, Instant::now()));
+        let ahead = t_src.secs_since(s0) / opts.speed;
+        let since = w0.elapsed().as_secs_f64();
+        if !(ahead >= 0.0 && ahead - since <= MAX_SOURCE_GAP.as_secs_f64()) {
+            sum.source_jumps += 1;
+            first = Some((t_src, Instant::now()));
+        }
+        let (s0, w0) = first.unwrap_or((t_src, Instant::now()));
         let due = w0 + Duration::from_secs_f64((t_src.secs_since(s0) / opts.speed).max(0.0));
         loop {
             let left = due.saturating_duration_since(Instant::now());
@@ -492,13 +679,17 @@ pub fn run_wall_node(
             }
             syncer.service(transport, &clock, left.min(Duration::from_millis(20)))?;
         }
-        let (stamp, synced) = syncer.sync.stamp(clock.now());
-        scan.t = stamp;
+        // the background model runs on the node's own monotonic clock, which never jumps
+        // (the synchronised clock can: a new server, a sync step); the message carries the
+        // synchronised stamp
+        scan.t = clock.now();
         scan.seq = seq;
         scan.sensor = id;
         seq = seq.wrapping_add(1);
         let t0 = Instant::now();
-        let msg = client.on_scan(&scan, synced)?;
+        let (stamp, synced) = syncer.sync.stamp(clock.now());
+        let mut msg = client.on_scan(&scan, synced)?;
+        msg.t = stamp;
         client_s += t0.elapsed().as_secs_f64();
         let (t_send, _) = syncer.sync.stamp(clock.now());
         for d in encode_dynamic(&msg, t_send)? {
@@ -517,7 +708,14 @@ pub fn run_wall_node(
         t_end: last_stamp,
     });
     trace(&format!("node {}: {} scans published", id.0, sum.scans));
-    finish(transport, ack.as_mut(), id, &end, opts.wait_server)?;
+    finish(transport, ack.as_mut(), id, &end, opts.wait_server).map_err(|e| match e {
+        NetError::Timeout(m) => NetError::Timeout(format!(
+            "{m} (the server's last beacon was {:.1} s ago)",
+            watch.silent_for().as_secs_f64()
+        )),
+        e => e,
+    })?;
+    sum.foreign_sync_replies = syncer.foreign;
     sum.sync_replies = syncer.replies;
     sum.offset_us = syncer.sync.applied_offset();
     sum.client_ms_per_scan = 1e3 * client_s / (sum.scans.max(1) as f64);

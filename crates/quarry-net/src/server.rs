@@ -12,7 +12,9 @@
 //! the assembler every few milliseconds.
 
 use crate::NetError;
-use crate::envelope::{SimMessage, SimStep, TrackMessage};
+#[cfg(feature = "sim")]
+use crate::envelope::SimStep;
+use crate::envelope::{SimMessage, TrackMessage};
 use crate::fusion::AssemblerFusion;
 use crate::proto::FusionStats;
 use crate::proto::wire::{Header, Kind, Message, Payload};
@@ -23,8 +25,11 @@ use quarry_sim::lidar_room::FRAME_US;
 use quarry_trackers::lidar_people::{
     DefaultLidarTracker, LidarPeopleConfig, LidarTrack, ServerPipeline,
 };
+#[cfg(feature = "sim")]
 use std::cmp::Reverse;
+#[cfg(feature = "sim")]
 use std::collections::{BTreeMap, BinaryHeap};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// One scanner known to the server: id, world pose, beam geometry.
@@ -52,12 +57,59 @@ pub struct ServerRun {
     /// Per sensor: the skew monitor's ε_s = min(arrival − t_capture), µs (negative: the sensor's
     /// clock is ahead; above 100 ms: behind, or a slow link).
     pub min_latency_us: Vec<(u16, Option<i64>)>,
+    /// This run's session id ([`crate::session`]).
+    pub session: u64,
+    /// Per sensor (in the server's order): joined, ended, scans accepted, last heard.
+    pub sensors: Vec<SensorStatus>,
+    /// Join requests refused: (sensor id, reason), once per sensor and reason.
+    pub refused: Vec<(u16, String)>,
+    /// Beacons of other (older) servers seen on the network.
+    pub other_servers: u64,
+    /// The run was stopped from outside (Ctrl-C, SIGTERM) before it was complete.
+    pub interrupted: bool,
+}
+
+/// What the server knows of one of its sensors at the end of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct SensorStatus {
+    /// Sensor id.
+    pub sensor: u16,
+    /// Its node joined (welcomed at least once).
+    pub joined: bool,
+    /// Joins welcomed (more than one: the node restarted or re-joined).
+    pub joins: u64,
+    /// Its node sent its end marker.
+    pub ended: bool,
+    /// Scan datagrams (wall clock) or steps (virtual time) of this sensor accepted.
+    pub accepted: u64,
+    /// Server seconds since start when anything of this sensor last arrived.
+    pub last_heard_s: Option<f64>,
+    /// Seconds between that and the end of the run.
+    pub silent_for_s: Option<f64>,
+}
+
+impl SensorStatus {
+    /// `ended`, `never joined`, `silent` (no end marker and nothing for more than 2 s at the
+    /// end: the node stopped, crashed or lost its link) or `running`.
+    pub fn state(&self) -> &'static str {
+        if self.ended {
+            "ended"
+        } else if !self.joined && self.last_heard_s.is_none() {
+            "never joined"
+        } else if self.silent_for_s.is_none_or(|s| s > 2.0) {
+            "silent"
+        } else {
+            "running"
+        }
+    }
 }
 
 struct Core {
     server: ServerPipeline<AssemblerFusion, DefaultLidarTracker>,
     run: ServerRun,
     ids: Vec<SensorId>,
+    start: Instant,
+    last_heard: Vec<Option<Instant>>,
 }
 
 impl Core {
@@ -74,9 +126,77 @@ impl Core {
         let fusion = AssemblerFusion::new(sensors, cfg)?;
         Ok(Self {
             server: ServerPipeline::new(fusion, tracker, cfg.frame_period_s),
-            run: ServerRun::default(),
+            run: ServerRun {
+                sensors: sensors
+                    .iter()
+                    .map(|s| SensorStatus {
+                        sensor: s.0.0,
+                        ..SensorStatus::default()
+                    })
+                    .collect(),
+                ..ServerRun::default()
+            },
             ids: sensors.iter().map(|s| s.0).collect(),
+            start: Instant::now(),
+            last_heard: vec![None; sensors.len()],
         })
+    }
+
+    /// Notes that something of sensor `k` arrived now.
+    fn heard(&mut self, k: usize) {
+        let now = Instant::now();
+        self.last_heard[k] = Some(now);
+        self.run.sensors[k].last_heard_s = Some(now.duration_since(self.start).as_secs_f64());
+    }
+
+    /// Answers a join request on `key`: a welcome for a sensor of this server in the same clock
+    /// mode, else a refusal naming the reason (recorded once per sensor and reason).
+    fn on_join(
+        &mut self,
+        transport: &dyn Transport,
+        session: &Session,
+        key: &str,
+        payload: &[u8],
+    ) -> Result<(), NetError> {
+        let Some(id) = sensor_of_key(key) else {
+            self.run.rejected += 1;
+            return Ok(());
+        };
+        let reason = match (self.index(id), crate::session::decode_join(payload)) {
+            (None, _) => Some(format!(
+                "sensor id {} is not one of this server's sensors ({}): check the node's --sensor-id and the server's --sensors",
+                id.0,
+                self.ids
+                    .iter()
+                    .map(|s| s.0.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )),
+            (Some(_), Some(m)) if m != session.mode => Some(format!(
+                "this server runs on the {} clock but sensor {} runs on the {} clock: start node and server with the same --clock",
+                session.mode, id.0, m
+            )),
+            (Some(k), _) => {
+                self.heard(k);
+                let st = &mut self.run.sensors[k];
+                st.joined = true;
+                st.joins += 1;
+                let w = crate::session::Welcome {
+                    mode: session.mode,
+                    session: session.id,
+                };
+                transport.publish(&keys::welcome(id), &w.encode())?;
+                None
+            }
+        };
+        if let Some(r) = reason {
+            transport.publish(&keys::refuse(id), r.as_bytes())?;
+            if !self.run.refused.iter().any(|(s, x)| *s == id.0 && *x == r) {
+                crate::node::trace(&format!("server: refused sensor {}: {r}", id.0));
+                self.run.refused.push((id.0, r));
+            }
+        }
+        Ok(())
     }
 
     fn index(&self, id: SensorId) -> Option<usize> {
@@ -105,6 +225,10 @@ impl Core {
     }
 
     fn finish(mut self) -> ServerRun {
+        let end = Instant::now();
+        for (st, h) in self.run.sensors.iter_mut().zip(&self.last_heard) {
+            st.silent_for_s = h.map(|h| end.duration_since(h).as_secs_f64());
+        }
         let a = &self.server.fusion.assembler;
         self.run.stats = a.stats();
         self.run.min_latency_us = self
@@ -116,15 +240,75 @@ impl Core {
     }
 }
 
-struct Beacon {
+/// The server's side of [`crate::session`]: its id, the 10 Hz beacon, and the watch for
+/// other servers on the same network.
+struct Session {
+    id: u64,
+    mode: crate::session::ClockKind,
+    started_unix_us: i64,
     next: Instant,
+    others: Box<dyn crate::transport::Subscription>,
 }
 
-impl Beacon {
-    fn tick(&mut self, transport: &dyn Transport) -> Result<(), NetError> {
+impl Session {
+    fn new(
+        transport: &dyn Transport,
+        id: u64,
+        mode: crate::session::ClockKind,
+    ) -> Result<Self, NetError> {
+        Ok(Self {
+            id,
+            mode,
+            started_unix_us: crate::session::unix_us(),
+            next: Instant::now(),
+            others: transport.subscribe(keys::SERVER_READY)?,
+        })
+    }
+
+    fn beacon(&self) -> crate::session::Beacon {
+        crate::session::Beacon {
+            mode: self.mode,
+            session: self.id,
+            started_unix_us: self.started_unix_us,
+        }
+    }
+
+    /// Publishes the beacon when due and reads the other servers' beacons: this server gives
+    /// way ([`NetError::Conflict`]) to an older one; a younger one is counted (it gives way).
+    fn tick(&mut self, transport: &dyn Transport, run: &mut ServerRun) -> Result<(), NetError> {
         if Instant::now() >= self.next {
-            transport.publish(keys::SERVER_READY, b"ready")?;
+            transport.publish(keys::SERVER_READY, &self.beacon().encode())?;
             self.next = Instant::now() + Duration::from_millis(100);
+        }
+        let me = self.beacon();
+        while let Some(r) = self.others.recv_timeout(Duration::ZERO)? {
+            let Some(b) = crate::session::Beacon::decode(&r.payload) else {
+                continue;
+            };
+            if b.session == self.id {
+                continue;
+            }
+            if me.younger_than(&b) {
+                return Err(NetError::Conflict(format!(
+                    "another lidar-server ({} clock, session {:016x}, started {:.1} s before this one) \
+                     already runs on this network: stop it first, or give this one other endpoints",
+                    b.mode,
+                    b.session,
+                    (me.started_unix_us - b.started_unix_us) as f64 / 1e6
+                )));
+            }
+            run.other_servers += 1;
+        }
+        Ok(())
+    }
+
+    /// Tells the nodes that this server stops before they are done (a few copies: the notice
+    /// is a datagram like any other).
+    fn end_notice(&self, transport: &dyn Transport) -> Result<(), NetError> {
+        let m = crate::session::encode_end(self.id);
+        for _ in 0..3 {
+            transport.publish(keys::SERVER_END, &m)?;
+            std::thread::sleep(Duration::from_millis(20));
         }
         Ok(())
     }
@@ -219,11 +403,29 @@ pub fn run_sim_server(
     t_end: TimeUs,
     idle_timeout: Duration,
 ) -> Result<ServerRun, NetError> {
+    let never = AtomicBool::new(false);
+    run_sim_server_until(transport, sensors, cfg, t_end, idle_timeout, &never)
+}
+
+/// [`run_sim_server`] that also stops, with what it has (`interrupted` set, the nodes told by
+/// the end notice), once `stop` is set (a Ctrl-C / SIGTERM handler's flag). (Feature `sim`.)
+#[cfg(feature = "sim")]
+pub fn run_sim_server_until(
+    transport: &dyn Transport,
+    sensors: &[SensorSpec],
+    cfg: &LidarPeopleConfig,
+    t_end: TimeUs,
+    idle_timeout: Duration,
+    stop: &AtomicBool,
+) -> Result<ServerRun, NetError> {
     let mut core = Core::new(sensors, cfg)?;
     let mut sub = transport.subscribe(keys::NODE_ALL)?;
-    let mut beacon = Beacon {
-        next: Instant::now(),
-    };
+    let mut session = Session::new(
+        transport,
+        crate::session::new_session_id(),
+        crate::session::ClockKind::Virtual,
+    )?;
+    core.run.session = session.id;
     let mut nodes: Vec<NodeIn> = sensors.iter().map(|_| NodeIn::default()).collect();
     let mut ready: BTreeMap<(i64, usize), SimStep> = BTreeMap::new();
     let mut queue: BinaryHeap<Reverse<(i64, u64, usize)>> = BinaryHeap::new();
@@ -298,7 +500,13 @@ pub fn run_sim_server(
             linger(transport, sub.as_mut(), &ids, &mut byes)?;
             return Ok(core.finish());
         }
-        beacon.tick(transport)?;
+        if stop.load(Ordering::Relaxed) {
+            crate::node::trace("server: interrupted");
+            core.run.interrupted = true;
+            session.end_notice(transport)?;
+            return Ok(core.finish());
+        }
+        session.tick(transport, &mut core.run)?;
         let Some(r) = sub.recv_timeout(Duration::from_millis(50))? else {
             if last_rx.elapsed() > idle_timeout {
                 let waiting: Vec<String> = sensors
@@ -316,8 +524,13 @@ pub fn run_sim_server(
             continue;
         };
         if r.key.starts_with(keys::JOIN_PREFIX) {
-            if let Some(id) = sensor_of_key(&r.key).filter(|&id| core.index(id).is_some()) {
-                transport.publish(&keys::welcome(id), b"welcome")?;
+            core.on_join(transport, &session, &r.key, &r.payload)?;
+            continue;
+        }
+        if r.key.starts_with(keys::SCAN_PREFIX) {
+            // a wall-clock node that did not say its mode when it joined
+            if let Some(id) = sensor_of_key(&r.key) {
+                core.on_join(transport, &session, &keys::join(id), b"join wall")?;
             }
             continue;
         }
@@ -344,9 +557,11 @@ pub fn run_sim_server(
             core.run.rejected += 1;
             continue;
         };
+        core.heard(k);
         let n = &mut nodes[k];
         match m {
             SimMessage::End(e) => {
+                core.run.sensors[k].ended = true;
                 if e.t_end != t_end {
                     return Err(NetError::Config(format!(
                         "node {} simulates a scenario ending at {} µs, the server one ending at {} µs: \
@@ -373,6 +588,7 @@ pub fn run_sim_server(
                     continue;
                 }
                 n.buf.insert(s.step, s);
+                core.run.sensors[k].accepted += 1;
                 while let Some(s) = n.buf.remove(&n.next) {
                     if n.progress.is_some_and(|p| s.t_true.0 <= p) {
                         return Err(NetError::Config(format!(
@@ -417,11 +633,27 @@ pub fn run_wall_server(
     cfg: &LidarPeopleConfig,
     opts: &WallServerOptions,
 ) -> Result<ServerRun, NetError> {
+    run_wall_server_until(transport, sensors, cfg, opts, &AtomicBool::new(false))
+}
+
+/// [`run_wall_server`] that also stops once `stop` is set (a Ctrl-C / SIGTERM handler's flag):
+/// it then closes the frames it can, tells the nodes with the end notice, and returns what it
+/// has with `interrupted` set.
+pub fn run_wall_server_until(
+    transport: &dyn Transport,
+    sensors: &[SensorSpec],
+    cfg: &LidarPeopleConfig,
+    opts: &WallServerOptions,
+    stop: &AtomicBool,
+) -> Result<ServerRun, NetError> {
     let mut core = Core::new(sensors, cfg)?;
     let mut sub = transport.subscribe(keys::NODE_ALL)?;
-    let mut beacon = Beacon {
-        next: Instant::now(),
-    };
+    let mut session = Session::new(
+        transport,
+        crate::session::new_session_id(),
+        crate::session::ClockKind::Wall,
+    )?;
+    core.run.session = session.id;
     let start = Instant::now();
     let now = || TimeUs(start.elapsed().as_micros() as i64);
     let mut ended = vec![false; sensors.len()];
@@ -429,33 +661,50 @@ pub fn run_wall_server(
     let mut last_rx: Option<Instant> = None;
     let mut next_poll = Instant::now();
     loop {
-        beacon.tick(transport)?;
+        session.tick(transport, &mut core.run)?;
         let wait = next_poll.saturating_duration_since(Instant::now());
         if let Some(r) = sub.recv_timeout(wait)? {
             let arrival = now();
             let sensor = sensor_of_key(&r.key);
+            let k = sensor.and_then(|id| core.index(id));
             if r.key.starts_with(keys::JOIN_PREFIX) {
-                if let Some(id) = sensor.filter(|&id| core.index(id).is_some()) {
-                    transport.publish(&keys::welcome(id), b"welcome")?;
-                }
+                core.on_join(transport, &session, &r.key, &r.payload)?;
             } else if r.key.starts_with(keys::BYE_PREFIX) {
                 note_bye(&r.key, &core.ids, &mut byes);
             } else if r.key.starts_with(keys::SCAN_PREFIX) {
                 last_rx = Some(Instant::now());
-                core.server
+                let d = core
+                    .server
                     .fusion
                     .assembler
                     .on_datagram(&r.payload, arrival);
+                if let Some(k) = k {
+                    core.heard(k);
+                    if d == crate::proto::Disposition::Accepted {
+                        core.run.sensors[k].accepted += 1;
+                    }
+                }
+            } else if r.key.starts_with(keys::SIM_PREFIX) {
+                // a virtual-time node that did not say its mode when it joined
+                core.run.rejected += 1;
+                if let Some(id) = sensor {
+                    core.on_join(transport, &session, &keys::join(id), b"join virtual")?;
+                }
             } else if r.key.starts_with(keys::SYNC_REQUEST_PREFIX) {
                 if let Ok(m) = Message::decode(&r.payload)
                     && m.header.kind == Kind::SyncRequest
                     && Some(m.header.sensor) == sensor
                 {
+                    if let Some(k) = k {
+                        core.heard(k);
+                    }
                     let t3 = now();
                     let reply = Message {
                         header: Header {
                             kind: Kind::SyncReply,
-                            t_capture: TimeUs(0),
+                            // the session, so that a node tells its server's replies from
+                            // another's (crate::session)
+                            t_capture: TimeUs(session.id as i64),
                             t_send: t3,
                             flags: 0,
                             ..m.header
@@ -476,6 +725,8 @@ pub fn run_wall_server(
                     Ok(SimMessage::End(e)) if Some(e.sensor) == sensor => {
                         if let Some(k) = core.index(e.sensor) {
                             ended[k] = true;
+                            core.run.sensors[k].ended = true;
+                            core.heard(k);
                         }
                         transport.publish(&keys::end_ack(e.sensor), b"ok")?;
                     }
@@ -490,7 +741,8 @@ pub fn run_wall_server(
         let all_ended = ended.iter().all(|&e| e);
         let idle = last_rx.is_some_and(|t| t.elapsed() > opts.idle_timeout);
         let over = opts.max_duration.is_some_and(|d| start.elapsed() > d);
-        if all_ended || idle || over {
+        let interrupted = stop.load(Ordering::Relaxed);
+        if all_ended || idle || over || interrupted {
             // every frame whose deadline has passed by then, plus the last window
             let fc = cfg.tau_sync_s + cfg.l_max_s + cfg.frame_period_s;
             let flush = TimeUs(now().0 + (fc * 1e6).round() as i64);
@@ -498,6 +750,10 @@ pub fn run_wall_server(
             if all_ended {
                 let ids = core.ids.clone();
                 linger(transport, sub.as_mut(), &ids, &mut byes)?;
+            } else {
+                // the nodes still running stop now instead of waiting for acknowledgements
+                core.run.interrupted = interrupted;
+                session.end_notice(transport)?;
             }
             return Ok(core.finish());
         }

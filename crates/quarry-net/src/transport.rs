@@ -75,17 +75,25 @@ pub mod keys {
     }
     /// The server's track messages ([`crate::TrackMessage`]), one per closed frame.
     pub const TRACKS: &str = "quarry/lidar/tracks";
-    /// The server's liveness beacon (10 Hz).
+    /// The server's liveness beacon (10 Hz; `ready <mode> <session> <started_unix_us>`).
     pub const SERVER_READY: &str = "quarry/lidar/server/ready";
     /// A node asking to join (repeated until welcomed): proves the node-to-server route exists
     /// before the node publishes data (a pub/sub engine drops what no subscriber matched yet).
     pub fn join(id: SensorId) -> String {
         format!("{JOIN_PREFIX}{}", id.0)
     }
-    /// The server's answer to [`join`].
+    /// The server's answer to [`join`] (`welcome <mode> <session>`, see [`crate::session`]).
     pub fn welcome(id: SensorId) -> String {
         format!("quarry/lidar/welcome/{}", id.0)
     }
+    /// The server's refusal of a [`join`] (a UTF-8 reason: an id the server does not know, a
+    /// node on the other clock mode); the node stops with that reason instead of waiting.
+    pub fn refuse(id: SensorId) -> String {
+        format!("quarry/lidar/refuse/{}", id.0)
+    }
+    /// The server's end notice (`end <session>`): it stopped before the nodes were done
+    /// (interrupted, or its --duration elapsed); the nodes stop instead of waiting for it.
+    pub const SERVER_END: &str = "quarry/lidar/server/end";
 
     #[cfg(test)]
     mod tests {
@@ -110,8 +118,10 @@ pub mod keys {
                 sync_reply(id),
                 end_ack(id),
                 welcome(id),
+                refuse(id),
                 TRACKS.to_string(),
                 SERVER_READY.to_string(),
+                SERVER_END.to_string(),
             ] {
                 assert!(!key_matches(NODE_ALL, &k), "{k}");
             }

@@ -8,13 +8,14 @@ use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_data::scans_csv::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
 use quarry_net::proto::SyncMode;
 use quarry_net::{
-    CsvSource, NodeSummary, SensorSpec, ServerRun, SimSource, Transport, WallNodeOptions,
-    WallServerOptions,
+    CsvSource, NodeSummary, SensorSpec, SensorStatus, ServerRun, SimSource, Transport,
+    WallNodeOptions, WallServerOptions,
 };
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
 use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 /// The simulated room both node and server must agree on (virtual time), and the tracker
@@ -183,8 +184,9 @@ pub struct LidarNodeArgs {
     /// Wall clock: stop after this many scans.
     #[arg(long)]
     pub max_scans: Option<u64>,
-    /// Wall clock: no clock synchronisation (stamps go out unflagged; the server drops them
-    /// unless it runs with --accept-unsynced).
+    /// Wall clock: no clock synchronisation. Stamps go out without the CLOCK_SYNCED flag and
+    /// the server counts and drops every one of them (spec §7.3): a test of that path, not a
+    /// way to run.
     #[arg(long)]
     pub no_sync: bool,
     /// Seconds to wait for the server's beacon (>= 0, at most 30 days).
@@ -301,6 +303,15 @@ stamps, restarts and silent sensors handled as spec §7.2 says, and counted), tr
 publishes its tracks on quarry/lidar/tracks and writes them to --out. It answers the nodes' clock-sync \
 requests (wall clock) and publishes a beacon on quarry/lidar/server/ready at 10 Hz.
 
+Faults: a node with an unknown --sensor-id, or on the other --clock, is refused at once with the \
+reason (the node stops with it). Of two servers on one network the younger stops with an error and \
+the nodes keep to the older one (each run has its own session id, in its beacon and sync replies). \
+A node whose server is restarted re-joins the new one and synchronises again. A node that stops or \
+dies is reported in server.json (sensors: state \"silent\", last heard), and the server tracks on \
+with the others. Ctrl-C or SIGTERM stops the server cleanly: it closes its frames, tells the nodes \
+(they stop at once), writes --out and its summary with \"interrupted\": true, and exits with status \
+130. A run that accepted no scan at all exits with an error saying what was dropped and why.
+
 Sensors: the simulated room's three scanners (default), or --sensors FILE.json, a list of \
 {\"id\": 0, \"x\": 0.25, \"y\": 0.25, \"theta_deg\": 45, \"geometry\": {...}} (geometry as in \
 quarry-core's ScanGeometry; omitted = UTM-30LX).
@@ -315,7 +326,9 @@ as `quarry lidar`), tracks_mot.txt (MOTChallenge rows with world x, y) and serve
 
 JSON (--json): clock, frames, frames_no_data, track_rows, ms_per_frame, steps, rejected, \
 sync_replies, accepted, dup, late, future, unsynced, unknown, malformed, lost, restarts, bad_points, \
-min_latency_us (per sensor: the skew monitor's min(arrival - t_capture)).
+min_latency_us (per sensor: the skew monitor's min(arrival - t_capture)), session, interrupted, \
+other_servers, refused (sensor, reason), sensors (per sensor: sensor, state = ended / running / \
+silent / never joined, joined, joins, ended, accepted, last_heard_s, silent_for_s).
 
 EXAMPLES:
   quarry lidar-server --listen tcp/0.0.0.0:7447 --out run1
@@ -394,6 +407,26 @@ pub struct ServerSummary {
     pub bad_points: u64,
     /// Per sensor id: min(arrival − t_capture), µs.
     pub min_latency_us: Vec<(u16, Option<i64>)>,
+    /// The run's session id (hex).
+    pub session: String,
+    /// Stopped by Ctrl-C / SIGTERM before the run was complete.
+    pub interrupted: bool,
+    /// Beacons of other servers seen.
+    pub other_servers: u64,
+    /// Joins refused: (sensor id, reason).
+    pub refused: Vec<(u16, String)>,
+    /// Per sensor: what the server knows of it at the end.
+    pub sensors: Vec<SensorReport>,
+}
+
+/// One sensor in the server's summary.
+#[derive(Debug, Serialize)]
+pub struct SensorReport {
+    /// `ended`, `running`, `silent` (no end marker and nothing for over 2 s: stopped, crashed or
+    /// cut off) or `never joined`.
+    pub state: &'static str,
+    #[serde(flatten)]
+    status: SensorStatus,
 }
 
 fn summary(clock: &str, r: &ServerRun) -> ServerSummary {
@@ -418,12 +451,64 @@ fn summary(clock: &str, r: &ServerRun) -> ServerSummary {
         restarts: s.restarts,
         bad_points: s.bad_points,
         min_latency_us: r.min_latency_us.clone(),
+        session: format!("{:016x}", r.session),
+        interrupted: r.interrupted,
+        other_servers: r.other_servers,
+        refused: r.refused.clone(),
+        sensors: r
+            .sensors
+            .iter()
+            .map(|st| SensorReport {
+                state: st.state(),
+                status: *st,
+            })
+            .collect(),
     }
+}
+
+/// Set by the Ctrl-C / SIGTERM handler of `lidar-server`.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// The exit status of a server stopped by a signal (128 + SIGINT, as shells report it).
+pub const INTERRUPTED_EXIT: u8 = 130;
+
+/// Why a run that accepted nothing did (an error, not a success with zero scans).
+fn nothing_accepted(s: &ServerSummary) -> Option<String> {
+    let got = if s.clock == "virtual" {
+        s.steps
+    } else {
+        s.accepted
+    };
+    if got > 0 || s.interrupted {
+        return None;
+    }
+    let mut why = vec![];
+    for (id, r) in &s.refused {
+        why.push(format!("sensor {id} refused: {r}"));
+    }
+    for (n, c) in [
+        ("unsynchronised (no CLOCK_SYNCED flag)", s.unsynced),
+        ("stamped in the future (another server's clock?)", s.future),
+        ("late", s.late),
+        ("from unknown sensors", s.unknown),
+        ("malformed", s.malformed),
+    ] {
+        if c > 0 {
+            why.push(format!("{c} parts {n}"));
+        }
+    }
+    if why.is_empty() {
+        why.push("no node sent anything".into());
+    }
+    Some(format!("the server accepted no scan: {}", why.join("; ")))
 }
 
 /// Entry point of `quarry lidar-server`.
 pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
     let s = server_inner(a)?;
+    if let Some(why) = nothing_accepted(&s) {
+        return Err(why.into());
+    }
     out.emit(&s, || {
         let lat: Vec<String> = s
             .min_latency_us
@@ -434,7 +519,8 @@ pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
             "lidar-server ({} clock): {} frames ({} without data), {} track rows, {:.3} ms per frame\n  \
              accepted {}, dup {}, late {}, future {}, unsynced {}, unknown {}, malformed {}, lost {}, \
              restarts {}, bad points {}; rejected node messages {}; sync replies {}\n  \
-             min(arrival - capture) per sensor: {}\n",
+             min(arrival - capture) per sensor: {}\n  \
+             sensors: {}{}{}\n",
             s.clock,
             s.frames,
             s.frames_no_data,
@@ -452,10 +538,42 @@ pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
             s.bad_points,
             s.rejected,
             s.sync_replies,
-            lat.join(", ")
+            lat.join(", "),
+            s.sensors
+                .iter()
+                .map(|r| format!("{} {} ({} accepted)", r.status.sensor, r.state, r.status.accepted))
+                .collect::<Vec<_>>()
+                .join(", "),
+            if s.refused.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; refused: {}",
+                    s.refused
+                        .iter()
+                        .map(|(id, r)| format!("{id}: {r}"))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                )
+            },
+            if s.interrupted {
+                " (interrupted)"
+            } else {
+                ""
+            }
         )
-    })
+    })?;
+    if s.interrupted {
+        return Err(Box::new(Interrupted));
+    }
+    Ok(())
 }
+
+/// The server was stopped by a signal: its outputs are written; the exit status is
+/// [`INTERRUPTED_EXIT`].
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted: the outputs so far are written")]
+pub struct Interrupted;
 
 fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
     let virtual_time = clock_mode(&a.clock)?;
@@ -494,16 +612,19 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
         .map(|d| seconds_flag("--duration", d, true))
         .transpose()?;
     let t = open_transport(&a.net)?;
+    // Ctrl-C / SIGTERM: stop cleanly with what we have (a second signal while stopping is
+    // ignored; the handler can only be set once per process, hence no error when it was)
+    let _ = ctrlc::set_handler(|| STOP.store(true, Ordering::Relaxed));
     let run = if virtual_time {
         let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
-        quarry_net::run_sim_server(t.as_ref(), &sensors, &cfg, t_end, idle)?
+        quarry_net::run_sim_server_until(t.as_ref(), &sensors, &cfg, t_end, idle, &STOP)?
     } else {
         let opts = WallServerOptions {
             max_duration,
             idle_timeout: idle,
             ..WallServerOptions::default()
         };
-        quarry_net::run_wall_server(t.as_ref(), &sensors, &cfg, &opts)?
+        quarry_net::run_wall_server_until(t.as_ref(), &sensors, &cfg, &opts, &STOP)?
     };
     let s = summary(&a.clock, &run);
     if let Some(dir) = &a.out {
@@ -543,5 +664,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("--duration") && e.contains("30 days"), "{e}");
+    }
+
+    #[test]
+    fn a_run_that_accepted_nothing_is_an_error_saying_why() {
+        let mut run = ServerRun::default();
+        run.stats.unsynced = 12;
+        run.refused
+            .push((4, "sensor id 4 is not one of this server's sensors".into()));
+        let why = nothing_accepted(&summary("wall", &run)).expect("an error");
+        assert!(
+            why.contains("12 parts unsynchronised") && why.contains("sensor 4"),
+            "{why}"
+        );
+        let why = nothing_accepted(&summary("wall", &ServerRun::default())).expect("an error");
+        assert!(why.contains("no node sent anything"), "{why}");
+        // an interrupted run reports what it has instead
+        run.interrupted = true;
+        assert!(nothing_accepted(&summary("wall", &run)).is_none());
+        run.interrupted = false;
+        run.stats.accepted = 1;
+        assert!(nothing_accepted(&summary("wall", &run)).is_none());
     }
 }

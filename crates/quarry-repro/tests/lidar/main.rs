@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod calib;
+mod faults;
 mod net;
 mod people;
 mod recorded;

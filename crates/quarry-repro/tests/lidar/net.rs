@@ -120,14 +120,16 @@ fn a_silent_node_times_out_with_a_clear_error() {
     }
 }
 
-#[test]
-fn wall_clock_nodes_sync_and_the_server_fuses_every_scan() {
-    let cfg = LidarPeopleConfig::faithful();
+/// Three wall-clock nodes of 60 scans each and a wall-clock server over the in-process bus.
+fn wall_clock_run(
+    cfg: &LidarPeopleConfig,
+    warmup: Duration,
+) -> (Vec<quarry_net::NodeSummary>, quarry_net::ServerRun) {
     let sc = Scenario::band(SpeedBand::Mid, 2, 3).with_network(NetworkModel::ideal());
     let bus = LocalBus::new();
     let opts = WallNodeOptions {
         max_scans: Some(60),
-        sync_warmup: Duration::from_millis(600),
+        sync_warmup: warmup,
         ..WallNodeOptions::default()
     };
     let nodes: Vec<_> = (0..3)
@@ -142,33 +144,72 @@ fn wall_clock_nodes_sync_and_the_server_fuses_every_scan() {
     let run = run_wall_server(
         &bus,
         &sensors(&sc),
-        &cfg,
+        cfg,
         &WallServerOptions {
-            max_duration: Some(Duration::from_secs(30)),
+            max_duration: Some(Duration::from_mins(2)),
+            idle_timeout: Duration::from_mins(1),
             ..WallServerOptions::default()
         },
     )
     .unwrap();
-    let sums: Vec<_> = nodes
+    let sums = nodes
         .into_iter()
         .map(|n| n.join().unwrap().unwrap())
         .collect();
+    (sums, run)
+}
+
+#[test]
+fn wall_clock_nodes_sync_and_the_server_fuses_every_scan() {
+    // What must hold on any machine, however busy: every scan is published, every part is
+    // accounted for exactly (accepted, late, unsynchronised or ahead of the server's clock),
+    // the server's count of unsynchronised parts is the nodes' own, nothing is malformed or
+    // unknown, every node says Hello once and ends. The frame deadline L_max is 5 s here, not
+    // 100 ms, so that a starved thread makes scans arrive late without making them "late":
+    // how the default deadline holds up under real timing is the soak test below.
+    let cfg = LidarPeopleConfig {
+        l_max_s: 5.0,
+        ..LidarPeopleConfig::faithful()
+    };
+    let (sums, run) = wall_clock_run(&cfg, Duration::from_secs(2));
     for s in &sums {
         assert_eq!(s.scans, 60);
+        assert!(s.sync_replies >= 1, "{s:?}");
+    }
+    let unsynced: u64 = sums.iter().map(|s| s.unsynced).sum();
+    let st = run.stats;
+    let datagrams: u64 = sums.iter().map(|s| s.datagrams).sum();
+    assert_eq!(
+        st.accepted + st.late + st.unsynced + st.future,
+        datagrams,
+        "{st:?} {sums:?}"
+    );
+    assert_eq!(st.unsynced, unsynced, "{st:?}");
+    assert_eq!(st.malformed + st.unknown + st.dup, 0, "{st:?}");
+    assert_eq!(st.restarts, 3); // one Hello per node
+    assert!(st.accepted > 0 && run.frames_tracked > 0, "{st:?}");
+    for s in &run.sensors {
+        assert_eq!(s.state(), "ended", "{s:?}");
+    }
+}
+
+/// The same run with the default deadlines, asserting timing: on an idle machine at most a
+/// few late scans, at most two unsynchronised stamps per node, no negative delay beyond
+/// jitter. Timing depends on the machine's load, so this is a soak test, not in the default
+/// suite: `cargo test -p quarry-repro --test lidar -- --ignored wall_clock_timing`.
+#[test]
+#[ignore = "timing soak test: depends on the machine's load"]
+fn wall_clock_timing_soak() {
+    let (sums, run) = wall_clock_run(&LidarPeopleConfig::faithful(), Duration::from_millis(600));
+    for s in &sums {
         assert!(s.sync_replies >= 2, "{s:?}");
         // a clock step of 10 ms or more clears CLOCK_SYNCED for one scan
         assert!(s.unsynced <= 2, "{s:?}");
     }
-    let unsynced: u64 = sums.iter().map(|s| s.unsynced).sum();
     let st = run.stats;
-    // 180 scans; a loaded machine may delay a few beyond L_max = 100 ms
-    assert!(st.accepted + st.late + st.unsynced >= 180, "{st:?}");
     assert!(st.late <= 9, "{st:?}");
-    assert_eq!(st.unsynced, unsynced, "{st:?}");
-    assert_eq!(st.malformed + st.unknown + st.future + st.dup, 0, "{st:?}");
-    assert_eq!(st.restarts, 3); // one Hello per node
+    assert_eq!(st.future, 0, "{st:?}");
     assert!(run.frames_tracked >= 25, "{}", run.frames_tracked);
-    assert!(run.sync_replies >= 6);
     // the bus is in-process: the skew monitor sees no negative delay beyond jitter
     for (id, l) in &run.min_latency_us {
         let l = l.unwrap_or_else(|| panic!("sensor {id} never heard"));
