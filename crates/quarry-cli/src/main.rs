@@ -12,6 +12,7 @@ use clap::{Args, Parser, Subcommand};
 mod cmd;
 mod config_args;
 mod fonts;
+mod interrupt;
 mod output;
 mod progress;
 
@@ -91,10 +92,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) if e.is::<cmd::lidar_net::Interrupted>() => {
+        Err(e) if e.is::<interrupt::Interrupted>() => {
             // the summary (and, with --json, its one object) is out already
             eprintln!("{e}");
-            ExitCode::from(cmd::lidar_net::INTERRUPTED_EXIT)
+            ExitCode::from(interrupt::EXIT)
         }
         Err(e) => {
             out.error(e.as_ref());

@@ -184,6 +184,8 @@ fn absurd_sizes_are_refused_before_allocating() {
         (&["slamot", "--particles", "10000000"][..], "particles"),
         (&["slamot", "--particles", "1000000000"][..], "particles"),
         (&["lidar", "--people", "1000000000"][..], "--people"),
+        (&["lidar", "--frames", "1000000000"][..], "--frames"),
+        (&["lidar-server", "--frames", "1000000000"][..], "--frames"),
     ] {
         let (code, _, stderr) = quarry(args);
         assert_eq!(code, 1, "{args:?}: {stderr}");
@@ -473,4 +475,49 @@ fn lidar_server_refuses_an_unknown_sensor_and_stops_cleanly_on_sigterm() {
     assert_eq!(v["interrupted"], true, "{v}");
     assert_eq!(v["refused"][0][0], 0, "{v}");
     assert!(d.join("server.json").exists());
+}
+
+#[cfg(unix)]
+#[test]
+fn motion_stops_cleanly_on_sigint_and_reports_the_frames_done() {
+    use std::process::Stdio;
+    let Some(sh) = shared() else { return };
+    let frames = sh.join("data/pets09-s2l1/img1");
+    if !frames.exists() {
+        eprintln!("skipping: no {}", frames.display());
+        return;
+    }
+    let d = tmpdir("motion-sigint");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_quarry"))
+        .args(["--json", "motion"])
+        .arg(&frames)
+        .arg("--out")
+        .arg(&d)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // interrupt once the second annotated frame is written
+    let t0 = std::time::Instant::now();
+    while !d.join("000002.png").exists() {
+        assert!(
+            t0.elapsed() < std::time::Duration::from_mins(2),
+            "no frame written"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let code = wait_child(&mut child, std::time::Duration::from_mins(2));
+    let mut out = String::new();
+    std::io::Read::read_to_string(child.stdout.as_mut().unwrap(), &mut out).unwrap();
+    assert_eq!(code, 130, "stdout: {out}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    assert_eq!(v["interrupted"], true, "{v}");
+    let n = v["frames"].as_u64().unwrap();
+    assert!((2..200).contains(&n), "{n} frames");
+    assert_eq!(v["per_frame"].as_array().unwrap().len() as u64, n);
 }

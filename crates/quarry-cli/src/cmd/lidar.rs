@@ -28,6 +28,21 @@ use std::path::{Path, PathBuf};
 /// allocation; 100 people is already a crowd of 1.25 per square metre).
 pub(crate) const MAX_PEOPLE: u32 = 100;
 
+/// The most evaluated frames `--frames` may ask for: 1 000 000 frames of 50 ms, about 14
+/// simulated hours (the run keeps every frame's tracks; a billion frames would not fit in memory).
+pub(crate) const MAX_FRAMES: usize = 1_000_000;
+
+/// `--frames` in 1..=[`MAX_FRAMES`].
+pub(crate) fn check_frames(frames: usize) -> Result<(), CmdError> {
+    if frames == 0 || frames > MAX_FRAMES {
+        return Err(format!(
+            "--frames {frames}: must be in 1..={MAX_FRAMES} (50 ms each; {MAX_FRAMES} frames are about 14 simulated hours)"
+        )
+        .into());
+    }
+    Ok(())
+}
+
 /// Arguments of `quarry lidar`.
 #[derive(Args, Debug)]
 #[command(
@@ -70,7 +85,8 @@ pub struct LidarArgs {
     /// scores up to --frames frames from t = 7 s; --band and --people are then ignored.
     #[arg(long, value_name = "NAME")]
     pub scenario: Option<String>,
-    /// Evaluated frames (50 ms each) after the 7 s warm-up; the paper's protocol uses 4800.
+    /// Evaluated frames (50 ms each) after the 7 s warm-up; the paper's protocol uses 4800
+    /// (at most 1 000 000).
     #[arg(long, default_value_t = 1200)]
     pub frames: usize,
     /// People in the room (at most 100).
@@ -258,9 +274,7 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
         }
         return run_recorded_cmd(args, scans, &cfg, output);
     }
-    if args.frames == 0 {
-        return Err("--frames must be > 0".into());
-    }
+    check_frames(args.frames)?;
     if args.people > MAX_PEOPLE {
         return Err(format!(
             "--people {}: at most {MAX_PEOPLE} walkers fit the 10 x 8 m room",

@@ -15,7 +15,6 @@ use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
 use quarry_trackers::lidar_people::{LidarPeopleConfig, Preset};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 /// The simulated room both node and server must agree on (virtual time), and the tracker
@@ -93,9 +92,7 @@ fn load_config(a: &RoomArgs) -> Result<LidarPeopleConfig, CmdError> {
 /// The scenario of `quarry lidar --band --people --frames --seed` (same duration formula), with
 /// the network and clock profiles.
 fn scenario(a: &RoomArgs, cfg: &LidarPeopleConfig) -> Result<Scenario, CmdError> {
-    if a.frames == 0 {
-        return Err("--frames must be > 0".into());
-    }
+    super::lidar::check_frames(a.frames)?;
     let band = SpeedBand::parse(&a.band)?;
     let duration = 7.0 + a.frames as f64 * cfg.frame_period_s + 0.3;
     if a.people > super::lidar::MAX_PEOPLE {
@@ -466,12 +463,6 @@ fn summary(clock: &str, r: &ServerRun) -> ServerSummary {
     }
 }
 
-/// Set by the Ctrl-C / SIGTERM handler of `lidar-server`.
-static STOP: AtomicBool = AtomicBool::new(false);
-
-/// The exit status of a server stopped by a signal (128 + SIGINT, as shells report it).
-pub const INTERRUPTED_EXIT: u8 = 130;
-
 /// Why a run that accepted nothing did (an error, not a success with zero scans).
 fn nothing_accepted(s: &ServerSummary) -> Option<String> {
     let got = if s.clock == "virtual" {
@@ -564,16 +555,10 @@ pub fn run_server(a: &LidarServerArgs, out: &Output) -> CmdResult {
         )
     })?;
     if s.interrupted {
-        return Err(Box::new(Interrupted));
+        return Err(Box::new(crate::interrupt::Interrupted));
     }
     Ok(())
 }
-
-/// The server was stopped by a signal: its outputs are written; the exit status is
-/// [`INTERRUPTED_EXIT`].
-#[derive(Debug, thiserror::Error)]
-#[error("interrupted: the outputs so far are written")]
-pub struct Interrupted;
 
 fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
     let virtual_time = clock_mode(&a.clock)?;
@@ -612,19 +597,31 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
         .map(|d| seconds_flag("--duration", d, true))
         .transpose()?;
     let t = open_transport(&a.net)?;
-    // Ctrl-C / SIGTERM: stop cleanly with what we have (a second signal while stopping is
-    // ignored; the handler can only be set once per process, hence no error when it was)
-    let _ = ctrlc::set_handler(|| STOP.store(true, Ordering::Relaxed));
+    // Ctrl-C / SIGTERM: stop cleanly with what we have
+    crate::interrupt::install();
     let run = if virtual_time {
         let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
-        quarry_net::run_sim_server_until(t.as_ref(), &sensors, &cfg, t_end, idle, &STOP)?
+        quarry_net::run_sim_server_until(
+            t.as_ref(),
+            &sensors,
+            &cfg,
+            t_end,
+            idle,
+            crate::interrupt::flag(),
+        )?
     } else {
         let opts = WallServerOptions {
             max_duration,
             idle_timeout: idle,
             ..WallServerOptions::default()
         };
-        quarry_net::run_wall_server_until(t.as_ref(), &sensors, &cfg, &opts, &STOP)?
+        quarry_net::run_wall_server_until(
+            t.as_ref(),
+            &sensors,
+            &cfg,
+            &opts,
+            crate::interrupt::flag(),
+        )?
     };
     let s = summary(&a.clock, &run);
     if let Some(dir) = &a.out {

@@ -35,7 +35,10 @@ OUTPUT: one line per frame (regions, bidirectional links, merges, splits, moving
 annotated frames written to --out DIR as <frame>.png: the grey frame, every full-length \
 trajectory in yellow, moving points in red with a cross at their current position.
 
-JSON (--json) prints one object with: frames (number processed), ms (mean segmentation + \
+Ctrl-C (or SIGTERM) stops after the current frame: the frames so far are written and reported \
+(\"interrupted\": true) and the exit status is 130.
+
+JSON (--json) prints one object with: frames (number processed), interrupted, ms (mean segmentation + \
 mapping time per frame in milliseconds, excluding image I/O and drawing), per_frame (list of \
 {frame, regions, bidirectional, merges, splits, moving: [{x, y, displacement, variance}]}).
 
@@ -90,6 +93,7 @@ struct FrameJson {
 #[derive(Debug, Serialize)]
 struct MotionJson {
     frames: usize,
+    interrupted: bool,
     ms: f64,
     per_frame: Vec<FrameJson>,
 }
@@ -141,7 +145,11 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
     let mut traj: Option<MinimumTrajectories> = None;
     let mut per_frame = Vec::new();
     let mut total_ms = 0.0;
+    crate::interrupt::install();
     for (k, path) in files[a - 1..b].iter().enumerate() {
+        if crate::interrupt::requested() {
+            break;
+        }
         let frame_no = a + k;
         let grey = rgb_to_gray_bt601(&load_rgb(path)?);
         let t = Instant::now();
@@ -205,7 +213,8 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
     let n = per_frame.len();
     let json = MotionJson {
         frames: n,
-        ms: total_ms / n as f64,
+        interrupted: crate::interrupt::requested(),
+        ms: total_ms / n.max(1) as f64,
         per_frame,
     };
     out.emit(&json, || {
@@ -230,7 +239,11 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
             let _ = writeln!(s, "annotated frames in {}", args.out.display());
         }
         s
-    })
+    })?;
+    if json.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -51,9 +51,12 @@ Output: with --out DIR, boxes.txt in MOTChallenge form (frame,id,x,y,w,h,conf,-1
 1-based frames; conf 1 for a detection, 0 for a prediction) and frames/NNNNNN.png annotated \
 (green = accepted detection, yellow = partial / severe occlusion, red = MEKF prediction).
 
+With --sequence, Ctrl-C (or SIGTERM) stops after the current frame: boxes.txt and the frames so \
+far are written, the report says \"interrupted\": true and the exit status is 130.
+
 JSON (--json): {scenario|sequence, preset, frames, center_err_px, success_rate_iou50, \
-recovery_frames, ms_per_frame, summary}; the accuracy fields are null without ground truth \
-(recovery_frames is null when never recovered).
+recovery_frames, ms_per_frame, summary, interrupted}; the accuracy fields are null without ground \
+truth (recovery_frames is null when never recovered).
 
 EXAMPLE:
   quarry rgbd --scenario s1 --seed 0
@@ -102,6 +105,8 @@ struct Report {
     recovery_frames: Option<usize>,
     ms_per_frame: f64,
     summary: Option<ScenarioSummary>,
+    /// Stopped by Ctrl-C / SIGTERM (`frames` is then the number processed).
+    interrupted: bool,
 }
 
 fn parse_box(s: &str) -> Result<BBox, CmdError> {
@@ -328,6 +333,7 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
         recovery_frames: s.recovery_frames,
         ms_per_frame: s.ms_per_frame,
         summary: Some(s.clone()),
+        interrupted: false,
     };
     out.emit(&rep, || {
         format!(
@@ -368,7 +374,13 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
     let mut tr: Option<RgbdPersonTracker> = None;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
     let (mut total_ms, mut n) = (0.0, 0usize);
+    crate::interrupt::install();
+    let mut processed = 0usize;
     for (k, f) in seq.frames.iter().enumerate() {
+        if crate::interrupt::requested() {
+            break;
+        }
+        processed = k + 1;
         let (num, rp, dp) = (f.number, &f.rgb, &f.depth);
         let rgb = quarry_vision::io::open_image(rp)?.to_rgb8();
         let depth = load_depth(dp, format)?;
@@ -408,21 +420,31 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
         scenario: None,
         sequence: Some(dir.display().to_string()),
         preset: cfg.preset.name(),
-        frames: seq.frames.len(),
+        frames: processed,
         center_err_px: None,
         success_rate_iou50: None,
         recovery_frames: None,
         ms_per_frame: if n > 0 { total_ms / n as f64 } else { 0.0 },
         summary: None,
+        interrupted: crate::interrupt::requested(),
     };
     out.emit(&rep, || {
         format!(
-            "{}: {} frames tracked, {:.1} ms/frame (no ground truth read)\n",
+            "{}: {} frames tracked, {:.1} ms/frame (no ground truth read){}\n",
             dir.display(),
-            seq.frames.len(),
-            rep.ms_per_frame
+            processed,
+            rep.ms_per_frame,
+            if rep.interrupted {
+                " (interrupted)"
+            } else {
+                ""
+            }
         )
-    })
+    })?;
+    if rep.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 /// Rows of `quarry demo`: the first 210 frames of S1 (static robot, the panel crosses in front
