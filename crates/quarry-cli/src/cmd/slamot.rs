@@ -178,6 +178,21 @@ pub struct SlamotArgs {
     /// Output directory for CSV trajectories and the plot.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// MRCLAM: when a measurement is applied (own = at its own stamp, the odometry interval is
+    /// cut there; next-odometry = at the end of its odometry interval, the old behaviour, kept
+    /// to measure the difference).
+    #[arg(long, value_enum, default_value_t = TimingArg::Own)]
+    pub timing: TimingArg,
+}
+
+/// MRCLAM measurement timing on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum TimingArg {
+    /// At the measurement's own stamp (default).
+    #[default]
+    Own,
+    /// At the end of the odometry interval it falls in (up to ~15 ms late).
+    NextOdometry,
 }
 
 /// Subcommands of `quarry slamot`.
@@ -268,8 +283,60 @@ struct Report {
     ospa: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     assoc_accuracy: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mrclam: Option<MrclamReport>,
     paper: Paper,
     per_run: Vec<RunSummary>,
+}
+
+/// The MRCLAM scores of one run (definitions: `quarry_repro::slamot::score`, docs/slamot.md).
+#[derive(Debug, Clone, Serialize)]
+struct MrclamRunScores {
+    seed: u64,
+    robot_err: f64,
+    robot_err_max: f64,
+    ate_rmse: f64,
+    ate_rmse_aligned: f64,
+    map_err: f64,
+    map_err_aligned: f64,
+    landmarks_mapped: usize,
+    ospa: f64,
+    gospa: f64,
+    assoc_accuracy: f64,
+    epochs: usize,
+    resamples: usize,
+    neff_mean: f64,
+    landmark_nis_mean: f64,
+    seconds: f64,
+}
+
+/// Every MRCLAM score: per run, and (mean, standard deviation, min, max) over runs.
+#[derive(Debug, Serialize)]
+struct MrclamReport {
+    robot: u32,
+    target_robots: Vec<u32>,
+    timing: String,
+    skipped: quarry_data::mrclam::MrclamSkips,
+    runs: Vec<MrclamRunScores>,
+    robot_err: [f64; 4],
+    ate_rmse: [f64; 4],
+    ate_rmse_aligned: [f64; 4],
+    map_err: [f64; 4],
+    gospa: [f64; 4],
+    assoc_accuracy: [f64; 4],
+}
+
+fn spread(v: impl Iterator<Item = f64>) -> [f64; 4] {
+    let v: Vec<f64> = v.collect();
+    let (m, var) = mean_var(&v);
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    [m, var.sqrt(), lo, hi]
+}
+
+fn finite_mean(v: impl Iterator<Item = f64>) -> f64 {
+    let v: Vec<f64> = v.filter(|x| x.is_finite()).collect();
+    mean_var(&v).0
 }
 
 fn mode_of(m: ModeArg) -> AssociationMode {
@@ -449,6 +516,7 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
         map_err: None,
         ospa: None,
         assoc_accuracy: None,
+        mrclam: None,
         paper: paper(),
         per_run,
     };
@@ -857,7 +925,11 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         )
         .into());
     }
-    let run = quarry_data::mrclam::load(dir, args.robot)?;
+    let timing = match args.timing {
+        TimingArg::Own => quarry_data::mrclam::MeasurementTiming::OwnStamp,
+        TimingArg::NextOdometry => quarry_data::mrclam::MeasurementTiming::NextOdometry,
+    };
+    let run = quarry_data::mrclam::load_with(dir, args.robot, timing)?;
     if args.mode.is_some_and(|m| m != ModeArg::Jipda) {
         eprintln!(
             "note: MRCLAM uses JIPDA with births and deaths (the number of robots in view varies)"
@@ -866,15 +938,22 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     let mut cfg = overrides(base, args.particles, None, args.eq11)?;
     cfg.association = AssociationMode::Jipda;
     cfg.validate()?;
+    if let Some(d) = &args.out {
+        std::fs::create_dir_all(d).map_err(io_err(d))?;
+    }
     let pb = progress::bar(out, args.runs, "mrclam");
     let mut per_run = Vec::new();
     let mut extras = Vec::new();
-    let mut last = None;
+    let mut scores = Vec::new();
+    let mut results = Vec::new();
     for i in 0..args.runs {
         let r = args.seed + i;
+        let t_run = std::time::Instant::now();
         let res = run_mrclam(&cfg, &run, filter_seed(r, cfg.particles))?;
+        let seconds = t_run.elapsed().as_secs_f64();
         let (rm, rv) = mean_var(&res.robot_err);
         let (tm, tv): (Vec<f64>, Vec<f64>) = res.target_err.iter().map(|e| mean_var(e)).unzip();
+        let resamples = res.resampled.iter().filter(|b| **b).count();
         per_run.push(RunSummary {
             seed: r,
             robot_err_mean: rm,
@@ -882,34 +961,52 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
             target_err_mean: tm,
             target_err_var: tv,
             swap_or_loss: res.target_slot.iter().any(Option::is_none),
-            resample_rate: f64::NAN,
+            resample_rate: resamples as f64 / res.resampled.len().max(1) as f64,
             ms_per_step: res.ms_per_step,
         });
+        scores.push(MrclamRunScores {
+            seed: r,
+            robot_err: res.trajectory.mean,
+            robot_err_max: res.trajectory.max,
+            ate_rmse: res.trajectory.ate_rmse,
+            ate_rmse_aligned: res.trajectory.ate_rmse_aligned,
+            map_err: res.map_score.mean,
+            map_err_aligned: res.map_score.mean_aligned,
+            landmarks_mapped: res.map_score.landmarks,
+            ospa: res.ospa,
+            gospa: res.gospa,
+            assoc_accuracy: res.assoc_accuracy,
+            epochs: res.trajectory.epochs,
+            resamples,
+            neff_mean: finite_mean(res.neff.iter().copied()),
+            landmark_nis_mean: finite_mean(res.landmark_nis.iter().map(|x| x.0)),
+            seconds,
+        });
         extras.push((res.map_err, res.ospa, res.assoc_accuracy));
-        last = Some(res);
+        results.push(res);
         pb.inc(1);
     }
     pb.finish_and_clear();
-    if let (Some(d), Some(res)) = (&args.out, &last) {
-        let mut s = String::from("t,robot_x,robot_y,robot_theta,est_x,est_y,est_theta\n");
-        for k in 0..res.epoch_t.len() {
-            let (a, b) = (res.robot_true[k], res.robot_est[k]);
-            let _ = writeln!(
-                s,
-                "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5}",
-                res.epoch_t[k], a[0], a[1], a[2], b[0], b[1], b[2]
-            );
-        }
-        let p = d.join(format!("mrclam_robot{}_trajectory.csv", args.robot));
-        std::fs::write(&p, s).map_err(io_err(&p))?;
-        let mut m = String::from("landmark_subject,x,y\n");
-        for (id, xy) in &res.map {
-            let _ = writeln!(m, "{},{:.4},{:.4}", id.0 + 6, xy[0], xy[1]);
-        }
-        let p = d.join(format!("mrclam_robot{}_map.csv", args.robot));
-        std::fs::write(&p, m).map_err(io_err(&p))?;
+    // the run written out and plotted: the median robot error
+    let mut order: Vec<usize> = (0..results.len()).collect();
+    order.sort_by(|a, b| scores[*a].robot_err.total_cmp(&scores[*b].robot_err));
+    if let (Some(d), Some(&med)) = (&args.out, order.get(order.len() / 2)) {
+        write_mrclam_outputs(d, args.robot, &run, &results[med], scores[med].seed)?;
     }
     let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
+    let mrclam = MrclamReport {
+        robot: args.robot,
+        target_robots: run.target_robots.clone(),
+        timing: format!("{:?}", args.timing),
+        skipped: run.skips,
+        robot_err: spread(scores.iter().map(|s| s.robot_err)),
+        ate_rmse: spread(scores.iter().map(|s| s.ate_rmse)),
+        ate_rmse_aligned: spread(scores.iter().map(|s| s.ate_rmse_aligned)),
+        map_err: spread(scores.iter().map(|s| s.map_err)),
+        gospa: spread(scores.iter().map(|s| s.gospa)),
+        assoc_accuracy: spread(scores.iter().map(|s| s.assoc_accuracy)),
+        runs: scores,
+    };
     let report = Report {
         scenario: format!(
             "mrclam robot {} (targets: robots {:?})",
@@ -932,19 +1029,232 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         map_err: Some(avg(extras.iter().map(|e| e.0))),
         ospa: Some(avg(extras.iter().map(|e| e.1))),
         assoc_accuracy: Some(avg(extras.iter().map(|e| e.2))),
+        mrclam: Some(mrclam),
         paper: paper(),
         per_run,
     };
-    let skips = run.skips;
     out.emit(&report, || {
         let mut s = human(&report);
-        let _ = writeln!(
-            s,
-            "(target k = robot {:?}[k]; paper columns are the paper's simulation, for reference)\nskipped records: {skips:?}",
-            run.target_robots
-        );
+        if let Some(m) = &report.mrclam {
+            let mut t = Table::new([
+                "seed",
+                "robot err (m)",
+                "max",
+                "ATE rmse",
+                "ATE aligned",
+                "map err",
+                "GOSPA",
+                "assoc acc",
+                "resamples",
+                "mean NIS (lm)",
+                "s",
+            ]);
+            for r in &m.runs {
+                t.row([
+                    r.seed.to_string(),
+                    format!("{:.3}", r.robot_err),
+                    format!("{:.3}", r.robot_err_max),
+                    format!("{:.3}", r.ate_rmse),
+                    format!("{:.3}", r.ate_rmse_aligned),
+                    format!("{:.3}", r.map_err),
+                    format!("{:.3}", r.gospa),
+                    format!("{:.3}", r.assoc_accuracy),
+                    format!("{}/{}", r.resamples, r.epochs),
+                    format!("{:.2}", r.landmark_nis_mean),
+                    format!("{:.1}", r.seconds),
+                ]);
+            }
+            s.push_str(&t.render());
+            let f = |v: [f64; 4]| format!("{:.3} ± {:.3} ({:.3}-{:.3})", v[0], v[1], v[2], v[3]);
+            let _ = writeln!(
+                s,
+                "robot error {}\nATE rmse {} (aligned {})\nmap error {}\nGOSPA {}, association accuracy {}",
+                f(m.robot_err),
+                f(m.ate_rmse),
+                f(m.ate_rmse_aligned),
+                f(m.map_err),
+                f(m.gospa),
+                f(m.assoc_accuracy)
+            );
+            let _ = writeln!(
+                s,
+                "(target k = robot {:?}[k]; measurement timing {}; paper columns are the paper's \
+                 simulation, for reference)\nskipped records: {}",
+                m.target_robots, m.timing, m.skipped
+            );
+        }
         s
     })
+}
+
+/// Writes the trajectory, map, tracks and per-epoch diagnostics as CSV, and the plot.
+fn write_mrclam_outputs(
+    d: &Path,
+    robot: u32,
+    run: &quarry_data::mrclam::MrclamRun,
+    res: &quarry_repro::slamot::MrclamResult,
+    seed: u64,
+) -> Result<(), CmdError> {
+    let mut s = String::from(
+        "t,robot_x,robot_y,robot_theta,est_x,est_y,est_theta,err,neff,resampled,landmark_nis,landmark_updates\n",
+    );
+    for k in 0..res.epoch_t.len() {
+        let (a, b) = (res.robot_true[k], res.robot_est[k]);
+        let _ = writeln!(
+            s,
+            "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5},{:.4},{:.2},{},{:.3},{}",
+            res.epoch_t[k],
+            a[0],
+            a[1],
+            a[2],
+            b[0],
+            b[1],
+            b[2],
+            res.robot_err[k],
+            res.neff[k],
+            u8::from(res.resampled[k]),
+            res.landmark_nis[k].0,
+            res.landmark_nis[k].1
+        );
+    }
+    let p = d.join(format!("mrclam_robot{robot}_trajectory.csv"));
+    std::fs::write(&p, s).map_err(io_err(&p))?;
+    let mut m = String::from("landmark_subject,x,y,true_x,true_y\n");
+    for (id, xy) in &res.map {
+        let t = run
+            .landmarks
+            .iter()
+            .find(|(i, _)| i == id)
+            .map_or([f64::NAN; 2], |l| l.1);
+        let _ = writeln!(
+            m,
+            "{},{:.4},{:.4},{:.4},{:.4}",
+            id.0 + 6,
+            xy[0],
+            xy[1],
+            t[0],
+            t[1]
+        );
+    }
+    let p = d.join(format!("mrclam_robot{robot}_map.csv"));
+    std::fs::write(&p, m).map_err(io_err(&p))?;
+    let mut tr = String::from("t,track,x,y,vx,vy,existence\n");
+    for r in &res.tracks {
+        let _ = writeln!(
+            tr,
+            "{:.3},{},{:.4},{:.4},{:.4},{:.4},{:.3}",
+            r.t, r.id.0, r.state[0], r.state[1], r.state[2], r.state[3], r.existence
+        );
+    }
+    let p = d.join(format!("mrclam_robot{robot}_tracks.csv"));
+    std::fs::write(&p, tr).map_err(io_err(&p))?;
+    plot_mrclam(
+        &d.join(format!("mrclam_robot{robot}.png")),
+        run,
+        res,
+        &format!(
+            "MRCLAM robot {robot}, seed {seed}: Vicon dashed black, estimate red, tracks dots; landmarks x true, dot estimated"
+        ),
+    )
+}
+
+/// The estimate over the Vicon truth: robot truth dashed, estimate solid, target tracks as dots,
+/// true landmarks as crosses, estimated landmarks as filled dots.
+fn plot_mrclam(
+    path: &Path,
+    run: &quarry_data::mrclam::MrclamRun,
+    res: &quarry_repro::slamot::MrclamResult,
+    caption: &str,
+) -> Result<(), CmdError> {
+    crate::fonts::register()?;
+    let pts = res
+        .robot_true
+        .iter()
+        .chain(&res.robot_est)
+        .map(|p| [p[0], p[1]])
+        .chain(run.landmarks.iter().map(|l| l.1))
+        .chain(res.map.iter().map(|l| l.1));
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in pts.filter(|p| p[0].is_finite() && p[1].is_finite()) {
+        x0 = x0.min(p[0]);
+        x1 = x1.max(p[0]);
+        y0 = y0.min(p[1]);
+        y1 = y1.max(p[1]);
+    }
+    if x0 > x1 {
+        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+    }
+    let pad = 0.5;
+    let (x0, x1, y0, y1) = (x0 - pad, x1 + pad, y0 - pad, y1 + pad);
+    let w = 1100u32;
+    let h = ((f64::from(w - 60) * (y1 - y0) / (x1 - x0)) as u32 + 100).clamp(300, 1400);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(15)
+            .caption(caption, ("sans-serif", 14))
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let e = |x: Result<(), String>| x;
+        let palette = [
+            RGBColor(0, 150, 0),
+            BLUE,
+            RGBColor(200, 120, 0),
+            RGBColor(140, 0, 160),
+            RGBColor(0, 150, 150),
+        ];
+        e(chart
+            .draw_series(
+                res.tracks
+                    .iter()
+                    .filter(|r| (x0..=x1).contains(&r.state[0]) && (y0..=y1).contains(&r.state[1]))
+                    .map(|r| {
+                        let c = palette[r.id.0 as usize % palette.len()];
+                        Circle::new((r.state[0], r.state[1]), 1, c.mix(0.35).filled())
+                    }),
+            )
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        e(chart
+            .draw_series(
+                run.landmarks
+                    .iter()
+                    .map(|l| Cross::new((l.1[0], l.1[1]), 6, BLACK.stroke_width(2))),
+            )
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        e(chart
+            .draw_series(
+                res.map
+                    .iter()
+                    .map(|(_, l)| Circle::new((l[0], l[1]), 4, MAGENTA.filled())),
+            )
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        let truth: Vec<(f64, f64)> = res.robot_true.iter().map(|p| (p[0], p[1])).collect();
+        let est: Vec<(f64, f64)> = res.robot_est.iter().map(|p| (p[0], p[1])).collect();
+        e(chart
+            .draw_series(DashedLineSeries::new(truth, 6, 5, BLACK.stroke_width(1)))
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        e(chart
+            .draw_series(LineSeries::new(est, RED.stroke_width(2)))
+            .map(|_| ())
+            .map_err(|x| x.to_string()))?;
+        root.present().map_err(|x| x.to_string())?;
+    }
+    save_png(path, buf, w, h)
 }
 
 /// The `quarry demo` row: S0, one run, N = 50, robot and target errors next to the paper's.

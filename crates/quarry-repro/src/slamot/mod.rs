@@ -7,6 +7,8 @@
 //!   baseline), both scored by [`score_frames`] into a [`SimRunResult`]; [`mean_var`],
 //!   [`assign_slots`];
 //! - `mrclam.rs`: [`run_mrclam`] into a [`MrclamResult`], [`mrclam_config`];
+//! - `score.rs`: the scores shared with the Python peers ([`score_trajectory`] (ATE with and
+//!   without rigid SE(2) alignment), [`score_map`], [`score_targets`] (OSPA / GOSPA));
 //! - here: the frame → [`SlamotObservation`] conversions ([`observation`],
 //!   [`mrclam_observation`]) and the filter seed of a Monte-Carlo run ([`filter_seed`]).
 //!
@@ -56,6 +58,7 @@
 //! ```
 
 mod mrclam;
+mod score;
 mod sim;
 
 use quarry_core::rng::stream;
@@ -63,7 +66,11 @@ use quarry_data::mrclam::MrclamFrame;
 use quarry_sim::slamot::SlamotFrame;
 use quarry_trackers::slamot::SlamotObservation;
 
-pub use mrclam::{MrclamResult, mrclam_config, run_mrclam};
+pub use mrclam::{MrclamResult, TrackRow, mrclam_config, run_mrclam};
+pub use score::{
+    MapScore, Se2, TargetEpoch, TrajectoryScore, align_se2, score_map, score_targets,
+    score_trajectory,
+};
 pub use sim::{
     SimRunResult, assign_slots, mean_var, run_frames, run_simulated, run_simulated_ekf,
     score_frames,

@@ -11,8 +11,22 @@ use quarry_data::mrclam::MrclamRun;
 use quarry_trackers::slamot::{DefaultStore, SlamotConfig, SlamotTracker};
 use serde::{Deserialize, Serialize};
 
+use super::score::{MapScore, TrajectoryScore, score_map, score_targets, score_trajectory};
 use super::{mean_var, mrclam_observation};
 use crate::Result;
+
+/// One confirmed target track at one epoch (for the tracks CSV).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrackRow {
+    /// Epoch time \[s\] since the run's start.
+    pub t: f64,
+    /// Track (slot) id.
+    pub id: TrackId,
+    /// Mean (x, y, v_x, v_y).
+    pub state: [f64; 4],
+    /// JIPDA existence probability.
+    pub existence: f64,
+}
 
 /// The result of one MRCLAM run (robot K does SLAM and tracks the other robots).
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -48,6 +62,22 @@ pub struct MrclamResult {
     pub robot_true: Vec<[f64; 3]>,
     /// Final landmark map estimate.
     pub map: Vec<(LandmarkId, [f64; 2])>,
+    /// Robot trajectory scores ([`score_trajectory`]: ATE with and without alignment).
+    pub trajectory: TrajectoryScore,
+    /// Final map scores ([`score_map`], aligned with the trajectory's transform).
+    pub map_score: MapScore,
+    /// Mean GOSPA (p = 2, c = 1 m, α = 2) over epochs, same sets as [`Self::ospa`].
+    pub gospa: f64,
+    /// Confirmed target tracks at every scored epoch.
+    pub tracks: Vec<TrackRow>,
+    /// Effective sample size after the update, per scored epoch (NaN where the epoch had no
+    /// detection to process).
+    pub neff: Vec<f64>,
+    /// Whether the particles were resampled, per scored epoch.
+    pub resampled: Vec<bool>,
+    /// Weighted mean normalised innovation squared of the landmark updates, per scored epoch
+    /// (NaN without a landmark update), with the number of landmark updates (each χ²₂).
+    pub landmark_nis: Vec<(f64, usize)>,
 }
 
 /// The MRCLAM configuration ([`SlamotConfig::mrclam`], the `mrclam` preset) with `particles`
@@ -68,6 +98,10 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
     let mut epoch_t = Vec::new();
     let mut robot_est = Vec::new();
     let mut robot_true = Vec::new();
+    let mut tracks = Vec::new();
+    let mut neff = Vec::new();
+    let mut resampled = Vec::new();
+    let mut landmark_nis = Vec::new();
     // (epoch, detection source, assigned slot)
     let mut assoc: Vec<(Option<usize>, Option<TrackId>)> = Vec::new();
     // per epoch: reports and truth
@@ -86,6 +120,30 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             epoch_t.push(f.t);
             robot_est.push([p.x, p.y, p.theta]);
             robot_true.push([tp.x, tp.y, tp.theta]);
+            let processed = !(f.landmark_obs.is_empty() && f.target_obs.is_empty());
+            let st = tr.last_epoch();
+            neff.push(if processed { st.neff } else { f64::NAN });
+            resampled.push(processed && st.resampled);
+            landmark_nis.push(if processed && st.landmark_updates > 0 {
+                (st.landmark_nis, st.landmark_updates)
+            } else {
+                (f64::NAN, 0)
+            });
+            for r in &reports {
+                if r.status != TrackStatus::Confirmed {
+                    continue;
+                }
+                if let Some(s) = &r.state
+                    && s.mean.len() >= 4
+                {
+                    tracks.push(TrackRow {
+                        t: f.t,
+                        id: r.id,
+                        state: [s.mean[0], s.mean[1], s.mean[2], s.mean[3]],
+                        existence: r.existence.unwrap_or(1.0),
+                    });
+                }
+            }
         }
         if !f.target_obs.is_empty() {
             let a = tr.last_assignment();
@@ -138,8 +196,7 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             .max_by_key(|(_, v)| v[r])
             .map(|(id, _)| *id);
     }
-    let mut ospa_sum = 0.0;
-    let mut ospa_n = 0usize;
+    let mut target_sets = Vec::with_capacity(hist.len());
     for (reports, truth, pose) in &hist {
         for r in 0..n_t {
             if let (Some(id), Some(t)) = (target_slot[r], truth[r])
@@ -167,11 +224,9 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             })
             .copied()
             .collect();
-        if let Ok(d) = quarry_eval::ospa::ospa(&visible, &est, 2.0, 1.0) {
-            ospa_sum += d;
-            ospa_n += 1;
-        }
+        target_sets.push((visible, est));
     }
+    let (ospa, gospa) = score_targets(&target_sets, 1.0)?;
     let map = tr.map_estimate();
     let mut map_errs = Vec::new();
     for (id, m) in &map {
@@ -179,6 +234,8 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             map_errs.push((m[0] - t[0]).hypot(m[1] - t[1]));
         }
     }
+    let trajectory = score_trajectory(&robot_est, &robot_true)?;
+    let map_score = score_map(&map, &run.landmarks, trajectory.alignment);
     Ok(MrclamResult {
         robot_err,
         epoch_t,
@@ -186,11 +243,7 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
         landmarks_mapped: map.len(),
         target_err,
         target_slot,
-        ospa: if ospa_n > 0 {
-            ospa_sum / ospa_n as f64
-        } else {
-            f64::NAN
-        },
+        ospa,
         assoc_accuracy: if tot > 0 {
             ok as f64 / tot as f64
         } else {
@@ -202,5 +255,12 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
         robot_est,
         robot_true,
         map,
+        trajectory,
+        map_score,
+        gospa,
+        tracks,
+        neff,
+        resampled,
+        landmark_nis,
     })
 }

@@ -50,6 +50,21 @@ pub enum RobotMotion {
     Unicycle,
 }
 
+/// Where a particle's pose at an observation epoch is drawn from (spec A20).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Proposal {
+    /// FastSLAM 1.0: the motion model is sampled at every control step; the weight is the
+    /// measurement likelihood at the sampled pose (the paper's, default).
+    #[default]
+    Motion,
+    /// FastSLAM 2.0: between epochs each particle carries its motion Gaussian (mean and
+    /// linearised covariance); at an epoch that Gaussian is conditioned on the known-landmark
+    /// measurements (`quarry_filter::rbpf::fastslam2`), the pose is drawn from it, and the
+    /// weight is the measurements' predictive likelihood.
+    Measurement,
+}
+
 /// How estimates are read out of the particle set (spec §2.11, A8).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -228,6 +243,8 @@ pub struct SlamotConfig {
     /// (real data has range outliers; `None` in the simulation, which has none).
     #[serde(with = "opt_f64")]
     pub landmark_gate: Option<f64>,
+    /// Pose proposal (`motion` = FastSLAM 1.0, default; `measurement` = FastSLAM 2.0).
+    pub proposal: Proposal,
 }
 
 impl Default for SlamotConfig {
@@ -259,6 +276,7 @@ impl Default for SlamotConfig {
             sensor_fov: 2.0 * std::f64::consts::PI,
             p_detect_outside: 1e-3,
             landmark_gate: None,
+            proposal: Proposal::Motion,
         }
     }
 }

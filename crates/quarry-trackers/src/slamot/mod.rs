@@ -72,8 +72,8 @@ mod particle;
 mod tracker;
 
 pub use config::{
-    AssociationMode, MAX_PARTICLES, MapStoreKind, Preset, Readout, RobotMotion, SlamotConfig,
-    TargetInit, TargetWeight,
+    AssociationMode, MAX_PARTICLES, MapStoreKind, Preset, Proposal, Readout, RobotMotion,
+    SlamotConfig, TargetInit, TargetWeight,
 };
 pub(crate) use init::{MapPoints, two_point_gaussian, two_point_pairs};
 pub use observation::SlamotObservation;

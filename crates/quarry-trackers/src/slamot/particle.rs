@@ -2,16 +2,17 @@
 //! (FastSLAM 1.0), the target prediction, the gated likelihood matrix, the association and the
 //! PDA update, and the particle's weight factor (spec §2.5–2.10).
 
-use nalgebra::{DMatrix, Matrix2, Vector2};
+use nalgebra::{DMatrix, Matrix2, Matrix3, Vector2, Vector3};
 use quarry_assoc::{Jipda, Jpda, PaperLikelihood, weights_eq11};
 use quarry_core::{
     Associator, Gaussian, InverseMeasurement, LandmarkId, LandmarkStore, LikelihoodMatrix, Pose2,
     TrackId, TrackPrior,
 };
 use quarry_filter::ekf::{self, MeasurementPrediction};
+use quarry_filter::rbpf::fastslam2;
 use quarry_filter::{ConstantVelocity2, RangeBearing, RangeBearingCv, UpdateForm};
 
-use super::config::{AssociationMode, SlamotConfig, TargetWeight};
+use super::config::{AssociationMode, Proposal, SlamotConfig, TargetWeight};
 use super::init::{InitPartner, two_point_state};
 use crate::TrackerError;
 
@@ -67,18 +68,67 @@ pub(super) struct EpochOut {
     pub(super) explained: Vec<f64>,
     /// β_jl (times ψ_l in `Jipda`), slots × detections.
     pub(super) beta: DMatrix<f64>,
+    /// Σ of the normalised innovation squared ν'S⁻¹ν of this particle's landmark updates.
+    pub(super) lm_nis: f64,
+    /// Landmark updates (re-observations) this epoch.
+    pub(super) lm_n: usize,
+}
+
+/// FastSLAM 2.0 (spec A20): conditions the particle's motion Gaussian (`p.pose`, `pose_cov`)
+/// on the known-landmark detections in turn, draws the pose from the result and resets the
+/// covariance. Returns the weight factor (the product of the predictive likelihoods; a gated
+/// detection contributes the likelihood at d² = gate and does not condition the pose) and
+/// (Σ NIS, count) of the predictive innovations.
+fn measurement_proposal<S: LandmarkStore<Gaussian<2>>>(
+    p: &mut SlamotParticle<S>,
+    pose_cov: &mut Matrix3<f64>,
+    rng: &mut dyn rand::RngCore,
+    ctx: &EpochCtx<'_>,
+) -> Result<(f64, f64, usize), TrackerError> {
+    let mut mean = Vector3::new(p.pose.x, p.pose.y, p.pose.theta);
+    let mut cov = *pose_cov;
+    let (mut log_w, mut nis, mut n) = (0.0, 0.0, 0usize);
+    for (id, z, is_new) in ctx.landmarks {
+        if *is_new {
+            continue;
+        }
+        let Some(lm) = p.map.get(*id) else { continue };
+        let u = fastslam2::pose_update(&mean, &cov, lm, z, &ctx.r)?;
+        nis += u.nis;
+        n += 1;
+        match ctx.cfg.landmark_gate {
+            Some(g) if u.nis > g => log_w += u.log_likelihood_at(g),
+            _ => {
+                log_w += u.log_likelihood;
+                mean = u.mean;
+                cov = u.cov;
+            }
+        }
+    }
+    let x = fastslam2::sample_pose(&mean, &cov, rng);
+    p.pose = Pose2::new(x.x, x.y, x.z);
+    *pose_cov = Matrix3::zeros();
+    Ok((log_w, nis, n))
 }
 
 pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
     p: &mut SlamotParticle<S>,
+    pose_cov: Option<&mut Matrix3<f64>>,
+    rng: &mut dyn rand::RngCore,
     ctx: &EpochCtx<'_>,
 ) -> Result<EpochOut, TrackerError> {
     let cfg = ctx.cfg;
+    // FastSLAM 2.0: the pose is drawn here, its weight factor replaces the landmark factor
+    let proposal = match (cfg.proposal, pose_cov) {
+        (Proposal::Measurement, Some(c)) => Some(measurement_proposal(p, c, rng, ctx)?),
+        _ => None,
+    };
     let rb = RangeBearing {
         sensor: p.pose,
         r: ctx.r,
     };
     let mut log_w = 0.0;
+    let (mut lm_nis, mut lm_n) = (0.0, 0usize);
     // 5.1/5.2 landmarks (FastSLAM 1.0): weight before the update, new ones initialised.
     for (id, z, is_new) in ctx.landmarks {
         if *is_new {
@@ -88,6 +138,8 @@ pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
             let pred = MeasurementPrediction::new(lm, &rb)?;
             let nu = pred.innovation(&rb, z)?;
             let d2 = pred.nis(&nu);
+            lm_nis += d2;
+            lm_n += 1;
             match cfg.landmark_gate {
                 Some(g) if d2 > g => log_w += pred.log_normaliser() - 0.5 * g,
                 _ => {
@@ -97,6 +149,11 @@ pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
                 }
             }
         }
+    }
+    if let Some((lw, nis, n)) = proposal {
+        log_w = lw;
+        lm_nis = nis;
+        lm_n = n;
     }
     let nk = ctx.targets.len();
     let mut explained = vec![0.0; nk];
@@ -123,7 +180,12 @@ pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
             beta[(l, *j)] = 1.0;
         }
         p.log_w += log_w;
-        return Ok(EpochOut { explained, beta });
+        return Ok(EpochOut {
+            explained,
+            beta,
+            lm_nis,
+            lm_n,
+        });
     }
     let n = p.targets.len();
     if n == 0 {
@@ -131,6 +193,8 @@ pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
         return Ok(EpochOut {
             explained,
             beta: DMatrix::zeros(0, nk),
+            lm_nis,
+            lm_n,
         });
     }
     // 5.4 predict
@@ -223,5 +287,10 @@ pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
         }
     }
     p.log_w += log_w + log_wt;
-    Ok(EpochOut { explained, beta })
+    Ok(EpochOut {
+        explained,
+        beta,
+        lm_nis,
+        lm_n,
+    })
 }
