@@ -91,7 +91,7 @@ pub mod fastslam1 {
 /// `Σ = (H_xᵀ Q⁻¹ H_x + P⁻¹)⁻¹`, `μ = x̂ + Σ H_xᵀ Q⁻¹ (z − ẑ)` in covariance form, which also
 /// takes a singular `P` (a particle that has not moved: the update is then the identity and
 /// the factor equals FastSLAM 1.0's). Each step returns `ln N(ν; 0, S)`, the factor of the
-/// particle's importance weight; the pose is then drawn with [`sample_pose`] and the landmarks
+/// particle's importance weight; the pose is then drawn with [`sample_pose`](fastslam2::sample_pose) and the landmarks
 /// updated at the drawn pose with [`fastslam1::landmark_update`] (whose factor is then not used).
 ///
 /// ```
