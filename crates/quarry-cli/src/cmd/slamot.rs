@@ -638,7 +638,6 @@ fn plot_fig1(
             .y_desc("y (m)")
             .draw()
             .map_err(|e| e.to_string())?;
-        let e = |x: Result<(), String>| x;
         // last epoch's detections
         if let Some(f) = frames.iter().rev().find(|f| f.observe) {
             let p = f.truth.robot;
@@ -647,31 +646,26 @@ fn plot_fig1(
                     p.x + z[0] * (p.theta + z[1]).cos(),
                     p.y + z[0] * (p.theta + z[1]).sin(),
                 );
-                e(chart
-                    .draw_series(std::iter::once(PathElement::new(
-                        vec![(p.x, p.y), q],
-                        RGBColor(190, 190, 190).stroke_width(1),
-                    )))
-                    .map(|_| ())
-                    .map_err(|x| x.to_string()))?;
+                drawn(chart.draw_series(std::iter::once(PathElement::new(
+                    vec![(p.x, p.y), q],
+                    RGBColor(190, 190, 190).stroke_width(1),
+                ))))?;
             }
         }
-        e(chart
-            .draw_series(
+        drawn(
+            chart.draw_series(
                 scen.landmarks
                     .iter()
                     .map(|l| Cross::new((l[0], l[1]), 6, BLACK.stroke_width(2))),
-            )
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
-        e(chart
-            .draw_series(
+            ),
+        )?;
+        drawn(
+            chart.draw_series(
                 res.map
                     .iter()
                     .map(|(_, l)| Circle::new((l[0], l[1]), 3, MAGENTA.filled())),
-            )
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
+            ),
+        )?;
         type Xy = Vec<(f64, f64)>;
         let mut series: Vec<(Xy, Xy)> = vec![(
             res.robot_true.iter().map(|p| (p[0], p[1])).collect(),
@@ -689,14 +683,8 @@ fn plot_fig1(
         }
         for (i, (t, est)) in series.into_iter().enumerate() {
             let c = COLOURS[i % COLOURS.len()];
-            e(chart
-                .draw_series(DashedLineSeries::new(t, 6, 5, c.stroke_width(1)))
-                .map(|_| ())
-                .map_err(|x| x.to_string()))?;
-            e(chart
-                .draw_series(LineSeries::new(est, c.stroke_width(2)))
-                .map(|_| ())
-                .map_err(|x| x.to_string()))?;
+            drawn(chart.draw_series(DashedLineSeries::new(t, 6, 5, c.stroke_width(1))))?;
+            drawn(chart.draw_series(LineSeries::new(est, c.stroke_width(2))))?;
         }
         root.present().map_err(|x| x.to_string())?;
     }
@@ -1206,7 +1194,6 @@ fn plot_mrclam(
             .y_desc("y (m)")
             .draw()
             .map_err(|e| e.to_string())?;
-        let e = |x: Result<(), String>| x;
         let palette = [
             RGBColor(0, 150, 0),
             BLUE,
@@ -1214,8 +1201,8 @@ fn plot_mrclam(
             RGBColor(140, 0, 160),
             RGBColor(0, 150, 150),
         ];
-        e(chart
-            .draw_series(
+        drawn(
+            chart.draw_series(
                 res.tracks
                     .iter()
                     .filter(|r| (x0..=x1).contains(&r.state[0]) && (y0..=y1).contains(&r.state[1]))
@@ -1223,38 +1210,34 @@ fn plot_mrclam(
                         let c = palette[r.id.0 as usize % palette.len()];
                         Circle::new((r.state[0], r.state[1]), 1, c.mix(0.35).filled())
                     }),
-            )
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
-        e(chart
-            .draw_series(
+            ),
+        )?;
+        drawn(
+            chart.draw_series(
                 run.landmarks
                     .iter()
                     .map(|l| Cross::new((l.1[0], l.1[1]), 6, BLACK.stroke_width(2))),
-            )
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
-        e(chart
-            .draw_series(
+            ),
+        )?;
+        drawn(
+            chart.draw_series(
                 res.map
                     .iter()
                     .map(|(_, l)| Circle::new((l[0], l[1]), 4, MAGENTA.filled())),
-            )
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
+            ),
+        )?;
         let truth: Vec<(f64, f64)> = res.robot_true.iter().map(|p| (p[0], p[1])).collect();
         let est: Vec<(f64, f64)> = res.robot_est.iter().map(|p| (p[0], p[1])).collect();
-        e(chart
-            .draw_series(DashedLineSeries::new(truth, 6, 5, BLACK.stroke_width(1)))
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
-        e(chart
-            .draw_series(LineSeries::new(est, RED.stroke_width(2)))
-            .map(|_| ())
-            .map_err(|x| x.to_string()))?;
+        drawn(chart.draw_series(DashedLineSeries::new(truth, 6, 5, BLACK.stroke_width(1))))?;
+        drawn(chart.draw_series(LineSeries::new(est, RED.stroke_width(2))))?;
         root.present().map_err(|x| x.to_string())?;
     }
     save_png(path, buf, w, h)
+}
+
+/// A plotters drawing result as the CLI's error (the drawn element is not needed).
+fn drawn<T, E: std::fmt::Display>(r: Result<T, E>) -> Result<(), String> {
+    r.map(|_| ()).map_err(|x| x.to_string())
 }
 
 /// The `quarry demo` row: S0, one run, N = 50, robot and target errors next to the paper's.
