@@ -35,5 +35,9 @@ fuzz_target!(|data: &[u8]| {
     if let Some(id) = session::decode_end(data) {
         assert_eq!(session::decode_end(&session::encode_end(id)), Some(id));
     }
-    assert!(session::decode_refusal(data).len() <= 4 * session::MAX_PAYLOAD + 64);
+    let r = session::Refusal::decode(data);
+    assert!(r.reason.len() <= 4 * session::MAX_PAYLOAD + 64);
+    if r.to.is_some() {
+        assert_eq!(session::Refusal::decode(&r.encode()), r);
+    }
 });

@@ -172,6 +172,23 @@ pub struct NodeSummary {
     pub source_jumps: u64,
 }
 
+/// The reason of the first queued refusal addressed to a node on the clock `mode`, if any
+/// (refusals of another mode's request for the same sensor id are dropped).
+fn refusal(refused: &mut dyn Subscription, mode: ClockKind) -> Result<Option<String>, NetError> {
+    while let Some(r) = refused.recv_timeout(Duration::ZERO)? {
+        let r = crate::session::Refusal::decode(&r.payload);
+        if r.applies_to(mode) {
+            return Ok(Some(r.reason));
+        }
+        if let Some(other) = r.to {
+            trace(&format!(
+                "node: ignored a refusal of a {other}-clock request for this sensor id"
+            ));
+        }
+    }
+    Ok(None)
+}
+
 /// Joins the server: publishes a join request (with this node's clock `mode`) every 100 ms
 /// until the server's welcome arrives (so the route from this node to the server's
 /// subscriptions exists before any data is sent). Returns the welcome (the server's session).
@@ -189,10 +206,8 @@ pub fn wait_for_server(
     let join = crate::session::encode_join(mode);
     while t0.elapsed() < timeout {
         transport.publish(&keys::join(id), &join)?;
-        if let Some(r) = refused.recv_timeout(Duration::ZERO)? {
-            return Err(NetError::Refused(crate::session::decode_refusal(
-                &r.payload,
-            )));
+        if let Some(r) = refusal(refused.as_mut(), mode)? {
+            return Err(NetError::Refused(r));
         }
         if let Some(r) = sub.recv_timeout(Duration::from_millis(100))? {
             // a server of an older version answers a bare "welcome": its own mode, session 0
@@ -206,10 +221,8 @@ pub fn wait_for_server(
             return Ok(w);
         }
     }
-    if let Some(r) = refused.recv_timeout(Duration::ZERO)? {
-        return Err(NetError::Refused(crate::session::decode_refusal(
-            &r.payload,
-        )));
+    if let Some(r) = refusal(refused.as_mut(), mode)? {
+        return Err(NetError::Refused(r));
     }
     Err(NetError::Timeout(format!(
         "the server did not answer the join of sensor {} within {:.1} s",

@@ -162,7 +162,8 @@ impl Core {
             self.run.rejected += 1;
             return Ok(());
         };
-        let reason = match (self.index(id), crate::session::decode_join(payload)) {
+        let requested = crate::session::decode_join(payload);
+        let reason = match (self.index(id), requested) {
             (None, _) => Some(format!(
                 "sensor id {} is not one of this server's sensors ({}): check the node's --sensor-id and the server's --sensors",
                 id.0,
@@ -190,7 +191,13 @@ impl Core {
             }
         };
         if let Some(r) = reason {
-            transport.publish(&keys::refuse(id), r.as_bytes())?;
+            let refusal = crate::session::Refusal {
+                // an unknown id concerns every node of that id; a clock mismatch only the
+                // nodes on the requested clock
+                to: requested.filter(|_| self.index(id).is_some()),
+                reason: r.clone(),
+            };
+            transport.publish(&keys::refuse(id), &refusal.encode())?;
             if !self.run.refused.iter().any(|(s, x)| *s == id.0 && *x == r) {
                 crate::node::trace(&format!("server: refused sensor {}: {r}", id.0));
                 self.run.refused.push((id.0, r));

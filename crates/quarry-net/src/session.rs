@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | [`keys::join`](crate::keys::join) | `join <mode>` | node, every 100 ms until answered |
 //! | [`keys::welcome`](crate::keys::welcome) | `welcome <mode> <session>` | server |
-//! | [`keys::refuse`](crate::keys::refuse) | a UTF-8 reason | server (unknown sensor, other clock mode) |
+//! | [`keys::refuse`](crate::keys::refuse) | `refuse <mode\|any> <reason>` ([`Refusal`]) | server (unknown sensor: `any`; other clock mode: the request's mode) |
 //! | [`keys::SERVER_READY`](crate::keys::SERVER_READY) | `ready <mode> <session> <started_unix_us>` | server, 10 Hz |
 //! | [`keys::SERVER_END`](crate::keys::SERVER_END) | `end <session>` | server, when it stops early (Ctrl-C, SIGTERM) |
 //!
@@ -181,10 +181,57 @@ pub fn decode_end(payload: &[u8]) -> Option<u64> {
     }
 }
 
-/// A refusal's reason as text (lossy UTF-8, at most [`MAX_PAYLOAD`] bytes).
-pub fn decode_refusal(payload: &[u8]) -> String {
-    let n = payload.len().min(MAX_PAYLOAD);
-    String::from_utf8_lossy(&payload[..n]).into_owned()
+/// The server's refusal of a join: to whom it is addressed and why.
+///
+/// A refusal goes out on the sensor's [`keys::refuse`](crate::keys::refuse) key, which every
+/// node started with that `--sensor-id` hears. It names the clock mode of the request it
+/// answers, so that a wall-clock node is not stopped by the refusal of a stray virtual-time
+/// message for its id (another program, an old recording replayed) and the other way round.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Refusal {
+    /// The clock mode of the refused request; `None` for every node of the sensor (an id the
+    /// server does not know).
+    pub to: Option<ClockKind>,
+    /// The reason, for a person.
+    pub reason: String,
+}
+
+impl Refusal {
+    /// `refuse <wall|virtual|any> <reason>`.
+    pub fn encode(&self) -> Vec<u8> {
+        let to = self.to.map_or("any", ClockKind::name);
+        format!("refuse {to} {}", self.reason).into_bytes()
+    }
+
+    /// The refusal in `payload` (lossy UTF-8, at most [`MAX_PAYLOAD`] bytes looked at). A
+    /// payload without the `refuse <to>` prefix (a server of an older version sent the bare
+    /// reason) is a refusal to every node.
+    pub fn decode(payload: &[u8]) -> Self {
+        let n = payload.len().min(MAX_PAYLOAD);
+        let text = String::from_utf8_lossy(&payload[..n]);
+        let mut parts = text.splitn(3, ' ');
+        if let (Some("refuse"), Some(to), rest) = (parts.next(), parts.next(), parts.next()) {
+            let to = match to {
+                "any" => Some(None),
+                m => ClockKind::parse(m).map(Some),
+            };
+            if let Some(to) = to {
+                return Self {
+                    to,
+                    reason: rest.unwrap_or("").to_string(),
+                };
+            }
+        }
+        Self {
+            to: None,
+            reason: text.into_owned(),
+        }
+    }
+
+    /// Whether a node on the clock `mode` must stop on this refusal.
+    pub fn applies_to(&self, mode: ClockKind) -> bool {
+        self.to.is_none_or(|m| m == mode)
+    }
 }
 
 #[cfg(test)]
@@ -206,6 +253,23 @@ mod tests {
             assert_eq!(Beacon::decode(&b.encode()), Some(b));
         }
         assert_eq!(decode_end(&encode_end(7)), Some(7));
+        for to in [None, Some(ClockKind::Wall), Some(ClockKind::Virtual)] {
+            let r = Refusal {
+                to,
+                reason: "sensor 9 is not one of this server's sensors".into(),
+            };
+            assert_eq!(Refusal::decode(&r.encode()), r);
+        }
+        // an older server's bare reason is a refusal to every node
+        let old = Refusal::decode(b"no such sensor");
+        assert_eq!(old.to, None);
+        assert_eq!(old.reason, "no such sensor");
+        assert!(old.applies_to(ClockKind::Wall) && old.applies_to(ClockKind::Virtual));
+        let virt = Refusal {
+            to: Some(ClockKind::Virtual),
+            reason: String::new(),
+        };
+        assert!(virt.applies_to(ClockKind::Virtual) && !virt.applies_to(ClockKind::Wall));
         // an older node's bare join has no mode
         assert_eq!(decode_join(b"join"), None);
         assert_eq!(Welcome::decode(b"welcome"), None);
@@ -238,7 +302,7 @@ mod tests {
             let _ = Welcome::decode(&bytes);
             let _ = Beacon::decode(&bytes);
             let _ = decode_end(&bytes);
-            prop_assert!(decode_refusal(&bytes).len() <= 3 * MAX_PAYLOAD);
+            prop_assert!(Refusal::decode(&bytes).reason.len() <= 3 * MAX_PAYLOAD);
         }
     }
 }

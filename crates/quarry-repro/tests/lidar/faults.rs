@@ -447,3 +447,52 @@ fn a_jump_of_the_source_clock_re_anchors_the_pacing_instead_of_sleeping() {
     assert_eq!(run.sensors[0].state(), "ended", "{:?}", run.sensors[0]);
     assert!(run.sensors[0].accepted > 5, "{:?}", run.sensors[0]);
 }
+
+#[test]
+fn a_refusal_of_the_other_clock_for_the_same_id_does_not_stop_a_node() {
+    // A stray virtual-time message for sensor 0 reaches a wall-clock server, which refuses it
+    // on sensor 0's refuse key, where a wall-clock node 0 is waiting to join. The node must
+    // ignore it: it was addressed to a virtual-time request. (Before, the node stopped with
+    // the other node's reason: CI saw it once in the garbage test above.)
+    let bus = LocalBus::new();
+    let id = SensorId(0);
+    let mut joins = bus.subscribe(&keys::join(id)).unwrap();
+    let b = bus.clone();
+    let n = std::thread::spawn(move || {
+        wait_for_server(&b, id, ClockKind::Wall, Duration::from_mins(1))
+    });
+    // the node has subscribed to its welcome and refuse keys before its first join request
+    wait_for(joins.as_mut(), 1, "the node's join request");
+    let refusal = |to| quarry_net::session::Refusal {
+        to,
+        reason: "this server runs on the wall clock but sensor 0 runs on the virtual clock".into(),
+    };
+    bus.publish(
+        &keys::refuse(id),
+        &refusal(Some(ClockKind::Virtual)).encode(),
+    )
+    .unwrap();
+    let w = quarry_net::Welcome {
+        mode: ClockKind::Wall,
+        session: 7,
+    };
+    bus.publish(&keys::welcome(id), &w.encode()).unwrap();
+    assert_eq!(n.join().unwrap().unwrap(), w);
+
+    // a refusal addressed to this node's clock, or to every node of the id, stops it at once
+    for to in [Some(ClockKind::Wall), None] {
+        // a fresh spy: the first node's requests are still queued on the old one
+        let mut joins = bus.subscribe(&keys::join(id)).unwrap();
+        let b = bus.clone();
+        let n = std::thread::spawn(move || {
+            wait_for_server(&b, id, ClockKind::Wall, Duration::from_mins(1))
+        });
+        wait_for(joins.as_mut(), 1, "the node's join request");
+        bus.publish(&keys::refuse(id), &refusal(to).encode())
+            .unwrap();
+        match n.join().unwrap() {
+            Err(NetError::Refused(m)) => assert!(m.starts_with("this server runs"), "{m}"),
+            other => panic!("{to:?}: {other:?}"),
+        }
+    }
+}
