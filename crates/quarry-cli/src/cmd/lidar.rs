@@ -63,7 +63,12 @@ GT in grey, tracks in colour).
 
 JSON (--json): success_rate, success_rate_detectable, loc_error_m, loc_rmse_m, mota, motp, \
 idf1, hota, idsw, frames, ms_per_frame, client_ms_per_scan, metrics (every measure), and with \
---calibration icp: calibration (per scanner: rough, calibrated and true pose, errors, overlap, RMS).
+--calibration icp: calibration (per scanner: rough, calibrated and true pose, errors, overlap, RMS), \
+interrupted.
+
+Ctrl-C (or SIGTERM) during a simulated run stops it at the next frame: the outputs and the \
+metrics cover the frames tracked so far, the summary says interrupted, the exit status is 130. \
+A second Ctrl-C stops at once.
 
 --scenario NAME runs one of the simulator's named scenarios instead (spec §5: empty, \
 single_line, crossing, side_by_side, door, stop_and_go, band_*, crowd_<n>) for its own duration, \
@@ -170,6 +175,8 @@ pub struct LidarSummary {
     /// With `--calibration icp`: the recovered poses and their errors against the truth.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub calibration: Option<lidar_people::CalibrationReport>,
+    /// Stopped by Ctrl-C / SIGTERM: the metrics cover the frames up to then (`frames`).
+    pub interrupted: bool,
 }
 
 /// Runs one simulated band and returns the summary (used by `quarry demo` too).
@@ -225,7 +232,10 @@ fn run_sim_scenario(
         indicatif::ProgressBar::hidden()
     };
     let mut on_progress = |f: f64| pb.set_position((f * 1000.0) as u64);
-    let run = repro::run_room_default(sc.clone(), cfg, &mut on_progress)?;
+    // Ctrl-C (with `crate::interrupt::install`, as `quarry lidar` does) ends the run at the
+    // next frame; the summary then scores the frames up to it
+    let run =
+        repro::run_room_default_until(sc.clone(), cfg, &mut on_progress, crate::interrupt::flag())?;
     pb.finish_and_clear();
     let window = run.eval_window(TimeUs(7_000_000), frames);
     let m = repro::evaluate_paper003(
@@ -253,6 +263,7 @@ fn run_sim_scenario(
         client_ms_per_scan: 1e3 * run.client_seconds / n_scans.max(1.0),
         metrics: m,
         calibration: run.calibration.clone(),
+        interrupted: run.interrupted,
     };
     Ok((summary, run, window, sc))
 }
@@ -275,6 +286,7 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
         return run_recorded_cmd(args, scans, &cfg, output);
     }
     check_frames(args.frames)?;
+    crate::interrupt::install();
     if args.people > MAX_PEOPLE {
         return Err(format!(
             "--people {}: at most {MAX_PEOPLE} walkers fit the 10 x 8 m room",
@@ -338,6 +350,13 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
     }
     output.emit(&summary, || {
         let mut t = summary_text(&summary);
+        if summary.interrupted {
+            let _ = writeln!(
+                t,
+                "interrupted: the metrics cover the {} frames tracked so far",
+                summary.frames
+            );
+        }
         if let Some(out) = &args.out {
             let _ = writeln!(
                 t,
@@ -346,7 +365,11 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
             );
         }
         t
-    })
+    })?;
+    if summary.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 /// The JSON summary of a `--scans` run.

@@ -124,7 +124,12 @@ mrclam jipda); --mrclam always uses JIPDA with births and deaths.
 
 JSON (--json): {\"robot_err_mean\", \"robot_err_var\", \"target_err_mean\": [..], \
 \"target_err_var\": [..], \"losses\", \"ms_per_step\", \"runs\", \"particles\", \"mode\", \
-\"scenario\", \"filter\", \"paper\"}; with --mrclam also \"map_err\", \"ospa\", \"assoc_accuracy\".
+\"scenario\", \"filter\", \"paper\", \"interrupted\"}; with --mrclam also \"map_err\", \"ospa\", \
+\"assoc_accuracy\".
+
+Ctrl-C (or SIGTERM) ends the runs after the one in progress: the report and the outputs cover \
+the runs completed (\"runs\" says how many), \"interrupted\" is true and the exit status is 130. \
+A second Ctrl-C stops at once.
 
 --out DIR writes trajectories_run<r>.csv, map_run<r>.csv and fig1.png (the median run like the \
 paper's Fig. 1: truth dashed, estimates solid, true landmarks as crosses, estimated landmarks as \
@@ -287,6 +292,8 @@ struct Report {
     mrclam: Option<MrclamReport>,
     paper: Paper,
     per_run: Vec<RunSummary>,
+    /// Stopped by Ctrl-C / SIGTERM after `runs` runs (fewer than asked for).
+    interrupted: bool,
 }
 
 /// The MRCLAM scores of one run (definitions: `quarry_repro::slamot::score`, docs/slamot.md).
@@ -468,9 +475,14 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
         return run_mrclam_cmd(args, base, dir, out);
     }
     let (cfg, scen) = sim_config(base, args.particles, args.mode, args.scenario, args.eq11)?;
+    crate::interrupt::install();
     let pb = progress::bar(out, args.runs, "slamot");
     let mut results = Vec::new();
     for i in 0..args.runs {
+        // Ctrl-C ends the loop after the run in progress (at least one run is reported)
+        if crate::interrupt::requested() {
+            break;
+        }
         let r = args.seed + i;
         let res = match args.filter {
             FilterArg::Rbpf => run_simulated(&cfg, &scen, r, filter_seed(r, cfg.particles))?,
@@ -502,7 +514,7 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
         filter: format!("{:?}", args.filter).to_lowercase(),
         mode: mode_name(cfg.association),
         particles: cfg.particles,
-        runs: args.runs,
+        runs: per_run.len() as u64,
         robot_err_mean: avg(per_run.iter().map(|r| r.robot_err_mean)),
         robot_err_var: avg(per_run.iter().map(|r| r.robot_err_var)),
         target_err_mean: (0..nt)
@@ -519,8 +531,13 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
         mrclam: None,
         paper: paper(),
         per_run,
+        interrupted: crate::interrupt::requested(),
     };
-    out.emit(&report, || human(&report))
+    out.emit(&report, || human(&report))?;
+    if report.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 fn human(r: &Report) -> String {
@@ -549,8 +566,16 @@ fn human(r: &Report) -> String {
         ]);
     }
     let mut s = format!(
-        "slamot: scenario {}, mode {}, N = {}, {} run(s)\n",
-        r.scenario, r.mode, r.particles, r.runs
+        "slamot: scenario {}, mode {}, N = {}, {} run(s){}\n",
+        r.scenario,
+        r.mode,
+        r.particles,
+        r.runs,
+        if r.interrupted {
+            " (interrupted: the runs completed before Ctrl-C)"
+        } else {
+            ""
+        }
     );
     s.push_str(&t.render());
     let _ = writeln!(
@@ -929,12 +954,17 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     if let Some(d) = &args.out {
         std::fs::create_dir_all(d).map_err(io_err(d))?;
     }
+    crate::interrupt::install();
     let pb = progress::bar(out, args.runs, "mrclam");
     let mut per_run = Vec::new();
     let mut extras = Vec::new();
     let mut scores = Vec::new();
     let mut results = Vec::new();
     for i in 0..args.runs {
+        // Ctrl-C ends the loop after the run in progress (at least one run is reported)
+        if crate::interrupt::requested() {
+            break;
+        }
         let r = args.seed + i;
         let t_run = std::time::Instant::now();
         let res = run_mrclam(&cfg, &run, filter_seed(r, cfg.particles))?;
@@ -1003,7 +1033,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         filter: "rbpf".into(),
         mode: "jipda".into(),
         particles: cfg.particles,
-        runs: args.runs,
+        runs: per_run.len() as u64,
         robot_err_mean: avg(per_run.iter().map(|r| r.robot_err_mean)),
         robot_err_var: avg(per_run.iter().map(|r| r.robot_err_var)),
         target_err_mean: (0..nt)
@@ -1020,6 +1050,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         mrclam: Some(mrclam),
         paper: paper(),
         per_run,
+        interrupted: crate::interrupt::requested(),
     };
     out.emit(&report, || {
         let mut s = human(&report);
@@ -1072,7 +1103,11 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
             );
         }
         s
-    })
+    })?;
+    if report.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 /// Writes the trajectory, map, tracks and per-epoch diagnostics as CSV, and the plot.

@@ -4,6 +4,7 @@
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use quarry_core::{
@@ -39,6 +40,9 @@ pub struct RoomRun {
     pub client_seconds: f64,
     /// `calibration = icp`: the calibrated poses and their errors against the truth.
     pub calibration: Option<CalibrationReport>,
+    /// The run was stopped early by its stop flag ([`run_room_default_until`]): `gt` and
+    /// `tracks` end at the frame it stopped at.
+    pub interrupted: bool,
 }
 
 impl RoomRun {
@@ -80,6 +84,10 @@ impl RoomRun {
 /// calibrated poses ([`Fusion::set_pose`]) and only then tracks: frames that close before the
 /// calibration are not tracked (counted in [`CalibrationReport::frames_discarded`]). A
 /// failed calibration ends the run with `TrackerError::Calibration` naming the scanner.
+///
+/// `stop` is read at every ground-truth frame: once it is set, the run delivers what is in
+/// flight, closes the due frames and returns with [`RoomRun::interrupted`] set (for Ctrl-C
+/// in a command line; pass a flag that stays `false` to run to the end).
 pub fn run_room<B, F, T>(
     sc: Scenario,
     cfg: &LidarPeopleConfig,
@@ -87,6 +95,7 @@ pub fn run_room<B, F, T>(
     fusion: F,
     tracker: T,
     progress: &mut dyn FnMut(f64),
+    stop: &AtomicBool,
 ) -> Result<RoomRun>
 where
     B: BackgroundModel,
@@ -178,6 +187,10 @@ where
                 deliver(&mut server, &mut queue, &mut pending, now, &mut run, d)?;
             }
             RoomEvent::Frame(g) => {
+                if stop.load(Ordering::Relaxed) {
+                    run.interrupted = true;
+                    break;
+                }
                 let now = g.t.0;
                 let frac = g.t.as_secs_f64() / duration;
                 if frac - last_report >= 0.01 {
@@ -195,7 +208,7 @@ where
     }
     // flush: everything arrives, then the last frames close at their deadline
     let end = run.gt.last().map_or(0, |g| g.t.0) + 1_000_000;
-    if calib.is_some() {
+    if calib.is_some() && !run.interrupted {
         return Err(ReproError::Invalid(
             "calibration = icp: the scenario ended before every scanner had learned its background (it must last longer than t_warm_s)".into(),
         ));
@@ -204,7 +217,9 @@ where
     if let Some(c) = run.calibration.as_mut() {
         c.frames_discarded = discarded;
     }
-    progress(1.0);
+    if !run.interrupted {
+        progress(1.0);
+    }
     // background points for plots
     for (c, (pose, g)) in clients.iter().zip(poses.iter().zip(&geoms)) {
         for &(n, r) in c.last_static() {
@@ -222,6 +237,17 @@ pub fn run_room_default(
     sc: Scenario,
     cfg: &LidarPeopleConfig,
     progress: &mut dyn FnMut(f64),
+) -> Result<RoomRun> {
+    run_room_default_until(sc, cfg, progress, &AtomicBool::new(false))
+}
+
+/// [`run_room_default`] that stops early once `stop` is set (see [`run_room`]): the frames
+/// up to then are in the returned run, [`RoomRun::interrupted`] says it stopped.
+pub fn run_room_default_until(
+    sc: Scenario,
+    cfg: &LidarPeopleConfig,
+    progress: &mut dyn FnMut(f64),
+    stop: &AtomicBool,
 ) -> Result<RoomRun> {
     // with `icp` the fusion only ever sees the rough poses, then the calibrated ones
     let start_poses: Vec<Pose2> = match cfg.calibration {
@@ -243,5 +269,6 @@ pub fn run_room_default(
         fusion,
         tracker,
         progress,
+        stop,
     )
 }
