@@ -643,9 +643,14 @@ pub fn run_wall_server(
     run_wall_server_until(transport, sensors, cfg, opts, &AtomicBool::new(false))
 }
 
+/// How long a wall-clock server told to stop (or past `max_duration`) keeps reading the
+/// messages already queued before it closes its frames: scans that arrived before the stop are
+/// fused, and nodes that keep sending cannot hold it longer than this.
+pub const STOP_DRAIN: Duration = Duration::from_secs(2);
+
 /// [`run_wall_server`] that also stops once `stop` is set (a Ctrl-C / SIGTERM handler's flag):
-/// it then closes the frames it can, tells the nodes with the end notice, and returns what it
-/// has with `interrupted` set.
+/// it then fuses the messages already queued (for at most [`STOP_DRAIN`]), closes the frames it
+/// can, tells the nodes with the end notice, and returns what it has with `interrupted` set.
 pub fn run_wall_server_until(
     transport: &dyn Transport,
     sensors: &[SensorSpec],
@@ -667,10 +672,18 @@ pub fn run_wall_server_until(
     let mut byes = vec![false; sensors.len()];
     let mut last_rx: Option<Instant> = None;
     let mut next_poll = Instant::now();
+    // set once the run is told to stop: what had arrived by then is still fused
+    let mut drain_until: Option<Instant> = None;
     loop {
         session.tick(transport, &mut core.run)?;
-        let wait = next_poll.saturating_duration_since(Instant::now());
-        if let Some(r) = sub.recv_timeout(wait)? {
+        let wait = if drain_until.is_some() {
+            Duration::ZERO
+        } else {
+            next_poll.saturating_duration_since(Instant::now())
+        };
+        let received = sub.recv_timeout(wait)?;
+        let queue_empty = received.is_none();
+        if let Some(r) = received {
             let arrival = now();
             let sensor = sensor_of_key(&r.key);
             let k = sensor.and_then(|id| core.index(id));
@@ -749,6 +762,14 @@ pub fn run_wall_server_until(
         let idle = last_rx.is_some_and(|t| t.elapsed() > opts.idle_timeout);
         let over = opts.max_duration.is_some_and(|d| start.elapsed() > d);
         let interrupted = stop.load(Ordering::Relaxed);
+        if (over || interrupted) && !all_ended && !idle {
+            // drain the messages already queued (scans sent before the stop), for at most
+            // STOP_DRAIN while the nodes keep sending
+            let until = *drain_until.get_or_insert_with(|| Instant::now() + STOP_DRAIN);
+            if !queue_empty && Instant::now() < until {
+                continue;
+            }
+        }
         if all_ended || idle || over || interrupted {
             // every frame whose deadline has passed by then, plus the last window
             let fc = cfg.tau_sync_s + cfg.l_max_s + cfg.frame_period_s;

@@ -319,7 +319,14 @@ fn a_stopped_server_tells_its_nodes_and_reports_what_it_has() {
             other => panic!("the node should stop with the server: {other:?}"),
         }
     }
-    assert!(run.sensors[1].accepted > 0, "{:?}", run.sensors);
+    // the spy saw node 1's Hello and at least three scan datagrams before the stop: the server
+    // fuses what had arrived before it closes (`STOP_DRAIN`), so each is accounted for. Whether
+    // a scan counts as accepted or late depends on the machine's load (CI saw 0 accepted once,
+    // before the drain existed): the test asserts only the accounting.
+    assert!(run.sensors[1].last_heard_s.is_some(), "{:?}", run.sensors);
+    let st = &run.stats;
+    let classified = st.accepted + st.dup + st.late + st.future + st.unsynced;
+    assert!(classified >= 3, "{st:?}");
 }
 
 #[test]
