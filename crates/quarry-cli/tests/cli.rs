@@ -536,15 +536,13 @@ fn catches_sigint(pid: u32) -> bool {
         .is_some_and(|mask| mask & (1 << 1) != 0)
 }
 
+/// Runs `quarry ARGS`, sends it SIGINT once it catches the signal (after `settle` more), and
+/// returns its exit status and JSON summary (stdout).
 #[cfg(target_os = "linux")]
-#[test]
-fn lidar_sim_stops_cleanly_on_sigint_and_writes_the_frames_done() {
+fn interrupted_run(args: &[&str], settle: std::time::Duration) -> (i32, Value) {
     use std::process::Stdio;
-    let d = tmpdir("lidar-sigint");
-    // a million frames: about 14 simulated hours, stopped long before
     let mut child = Command::new(env!("CARGO_BIN_EXE_quarry"))
-        .args(["--json", "lidar", "--frames", "1000000", "--out"])
-        .arg(&d)
+        .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -557,8 +555,7 @@ fn lidar_sim_stops_cleanly_on_sigint_and_writes_the_frames_done() {
         );
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    // let it track a little (not needed for the test to hold: 0 frames is a valid answer)
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    std::thread::sleep(settle);
     let st = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
@@ -567,8 +564,22 @@ fn lidar_sim_stops_cleanly_on_sigint_and_writes_the_frames_done() {
     let code = wait_child(&mut child, std::time::Duration::from_mins(2));
     let mut out = String::new();
     std::io::Read::read_to_string(child.stdout.as_mut().unwrap(), &mut out).unwrap();
-    assert_eq!(code, 130, "stdout: {out}");
     let v: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    (code, v)
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn lidar_sim_stops_cleanly_on_sigint_and_writes_the_frames_done() {
+    let d = tmpdir("lidar-sigint");
+    let out = d.to_str().unwrap();
+    // a million frames: about 14 simulated hours, stopped long before; it tracks a little
+    // before the signal (not needed for the test to hold: 0 frames is a valid answer)
+    let (code, v) = interrupted_run(
+        &["--json", "lidar", "--frames", "1000000", "--out", out],
+        std::time::Duration::from_millis(1500),
+    );
+    assert_eq!(code, 130, "{v}");
     assert_eq!(v["interrupted"], true, "{v}");
     let n = v["frames"].as_u64().unwrap();
     assert!(n < 1_000_000, "{n} frames");
@@ -583,31 +594,11 @@ fn lidar_sim_stops_cleanly_on_sigint_and_writes_the_frames_done() {
 #[cfg(target_os = "linux")]
 #[test]
 fn slamot_runs_stop_cleanly_on_sigint_and_report_the_runs_done() {
-    use std::process::Stdio;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_quarry"))
-        .args(["--json", "slamot", "--runs", "100000", "--particles", "5"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while !catches_sigint(child.id()) {
-        assert!(
-            t0.elapsed() < std::time::Duration::from_mins(2),
-            "the handler was never installed"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let st = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(st.success());
-    let code = wait_child(&mut child, std::time::Duration::from_mins(2));
-    let mut out = String::new();
-    std::io::Read::read_to_string(child.stdout.as_mut().unwrap(), &mut out).unwrap();
-    assert_eq!(code, 130, "stdout: {out}");
-    let v: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let (code, v) = interrupted_run(
+        &["--json", "slamot", "--runs", "100000", "--particles", "5"],
+        std::time::Duration::ZERO,
+    );
+    assert_eq!(code, 130, "{v}");
     assert_eq!(v["interrupted"], true, "{v}");
     let n = v["runs"].as_u64().unwrap();
     assert!((1..100_000).contains(&n), "{n} runs");
