@@ -82,6 +82,8 @@ pub struct Target {
     lost: usize,
     fresh: bool,
     placed: bool,
+    /// Consecutive frames of box overlap with younger targets (fusion, an extension).
+    fuse_streak: BTreeMap<TrackId, usize>,
 }
 
 /// Per-target diagnostics of one frame.
@@ -557,7 +559,19 @@ impl WatershedSiftTracker {
             }
             let s = &old_regions[k];
             if occluded[k] {
-                let bi = bidir_of(&self.targets[k]);
+                // Bi_k: the bidirectional successors of the target's *own* regions; the shared
+                // occlusion region of the previous frame is not one of them (read literally,
+                // §2.14 would hand its successor to every member, and the members would share
+                // one centre for as long as the group lasts)
+                let own = Target {
+                    regions: s
+                        .iter()
+                        .filter(|r| r.provenance != Provenance::Occlusion)
+                        .copied()
+                        .collect(),
+                    ..self.targets[k].clone()
+                };
+                let bi = bidir_of(&own);
                 if !bi.is_empty() {
                     for j in bi {
                         push(&mut claims[k], j, Provenance::Bidirectional);
@@ -780,6 +794,7 @@ impl WatershedSiftTracker {
                 lost: 0,
                 fresh: true,
                 placed: false,
+                fuse_streak: BTreeMap::new(),
             });
             occluded.push(false);
             located.push(None);
@@ -897,6 +912,11 @@ impl WatershedSiftTracker {
         }
         let sift_us = cache.us;
 
+        // ----- [ours] fusion of targets that follow one person -----
+        if self.cfg.fuse_iou > 0.0 {
+            self.fuse();
+        }
+
         // ----- termination (§2.16) -----
         let (bw, bh) = (self.cfg.box_w / 2.0, self.cfg.box_h / 2.0);
         let (fw, fh) = (f64::from(w) - 1.0, f64::from(h) - 1.0);
@@ -988,6 +1008,66 @@ impl WatershedSiftTracker {
             },
         };
         Ok(reports)
+    }
+}
+
+impl WatershedSiftTracker {
+    /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
+    /// consecutive frames: the younger (larger id) joins the older.
+    fn fuse(&mut self) {
+        let n = self.targets.len();
+        let visible = |t: &Target| !t.occluded && !t.regions.is_empty();
+        let mut absorbed = vec![false; n];
+        for i in 0..n {
+            let mut streak = std::mem::take(&mut self.targets[i].fuse_streak);
+            let mut next = BTreeMap::new();
+            for j in 0..n {
+                if i == j || absorbed[i] || absorbed[j] || self.targets[j].id <= self.targets[i].id
+                {
+                    continue;
+                }
+                let (a, b) = (&self.targets[i], &self.targets[j]);
+                if !(visible(a) && visible(b)) {
+                    continue;
+                }
+                if self.bbox(a.centre).iou(&self.bbox(b.centre)) >= self.cfg.fuse_iou {
+                    let s = streak.get(&b.id).copied().unwrap_or(0) + 1;
+                    if s >= self.cfg.fuse_frames.max(1) {
+                        absorbed[j] = true;
+                        let regs = std::mem::take(&mut self.targets[j].regions);
+                        let a = &mut self.targets[i];
+                        for r in regs {
+                            if !a.regions.iter().any(|x| x.label == r.label) {
+                                a.regions.push(r);
+                            }
+                        }
+                        let m = a.regions.len() as f64;
+                        a.centre = [
+                            a.regions
+                                .iter()
+                                .map(|r| f64::from(r.minimum.0))
+                                .sum::<f64>()
+                                / m,
+                            a.regions
+                                .iter()
+                                .map(|r| f64::from(r.minimum.1))
+                                .sum::<f64>()
+                                / m,
+                        ];
+                    } else {
+                        next.insert(b.id, s);
+                    }
+                }
+            }
+            streak.clear();
+            self.targets[i].fuse_streak = next;
+        }
+        let mut k = 0;
+        self.targets.retain(|_| {
+            let keep = !absorbed[k];
+            k += 1;
+            keep
+        });
     }
 }
 
