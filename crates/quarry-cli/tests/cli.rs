@@ -548,12 +548,8 @@ fn video_runs_writes_results_and_scores_like_eval() {
     let mut body = String::new();
     for k in 0..12u32 {
         let cx = 10.0 + 2.0 * f64::from(k);
-        body.push_str(&format!(
-            "{},1,{},{},12,30,1,-1,-1,-1\n",
-            k + 1,
-            cx - 5.0,
-            10.0
-        ));
+        use std::fmt::Write as _;
+        writeln!(body, "{},1,{},{},12,30,1,-1,-1,-1", k + 1, cx - 5.0, 10.0).unwrap();
     }
     std::fs::write(&gt, body).unwrap();
     let out = d.join("out");

@@ -1,6 +1,7 @@
-//! Scenario tests of the watershed + SIFT tracker (spec 004 §7.1 T2, T3 and a crossing) on small
+//! Scenario tests of the watershed + SIFT tracker (spec 004 §7.1 T2 and a crossing) on small
 //! synthetic videos: a value-noise background, dark textured walkers, Gaussian pixel noise,
 //! everything seeded.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry_core::{MultiTargetTracker, Plane, Stamp, TrackReport};
 use quarry_trackers::watershed_sift::{WatershedSiftConfig, WatershedSiftTracker};

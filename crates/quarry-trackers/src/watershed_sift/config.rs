@@ -288,7 +288,7 @@ impl crate::TrackerConfig for WatershedSiftConfig {
             return err(format!("levels must be in 8..=65536, got {}", self.levels));
         }
         for (name, v) in [("box_w", self.box_w), ("box_h", self.box_h)] {
-            if !(v.is_finite() && v >= 2.0 && v <= MAX_BOX_SIDE) {
+            if !(v.is_finite() && (2.0..=MAX_BOX_SIDE).contains(&v)) {
                 return err(format!("{name} must be in [2, {MAX_BOX_SIDE}], got {v}"));
             }
         }

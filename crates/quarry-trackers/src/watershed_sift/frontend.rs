@@ -80,16 +80,13 @@ impl MotionFrontEnd {
                 self.segmenter.run(&inv)?.segmentation
             }
         };
-        match (&self.current, &mut self.trajectories) {
-            (Some(prev), Some(tr)) => {
-                let map = RegionMapping::new(prev, &seg)?;
-                tr.advance(&map, &seg)?;
-                self.mapping = Some(map);
-            }
-            _ => {
-                self.trajectories = Some(MinimumTrajectories::new(self.test.n, &seg)?);
-                self.mapping = None;
-            }
+        if let (Some(prev), Some(tr)) = (&self.current, &mut self.trajectories) {
+            let map = RegionMapping::new(prev, &seg)?;
+            tr.advance(&map, &seg)?;
+            self.mapping = Some(map);
+        } else {
+            self.trajectories = Some(MinimumTrajectories::new(self.test.n, &seg)?);
+            self.mapping = None;
         }
         self.moving = match &self.trajectories {
             Some(tr) => tr.moving_points(&self.test)?,

@@ -39,8 +39,7 @@ impl Provenance {
     /// Rank of step 7's priority (lower wins).
     fn rank(self) -> u8 {
         match self {
-            Self::Separation => 0,
-            Self::Occlusion => 0,
+            Self::Separation | Self::Occlusion => 0,
             Self::Bidirectional => 1,
             Self::Merge => 2,
             Self::SplitSift => 3,
@@ -150,7 +149,7 @@ struct FeatureCache<'a> {
     us: f64,
 }
 
-impl<'a> FeatureCache<'a> {
+impl FeatureCache<'_> {
     /// Keypoints and descriptors of the crop `[x0, y0, x1, y1]` (inclusive) padded by `pad`,
     /// in frame coordinates.
     fn crop(
@@ -554,7 +553,7 @@ impl WatershedSiftTracker {
         let _ = &prev;
         for k in 0..n_t {
             if self.targets[k].placed {
-                claims[k] = self.targets[k].regions.clone();
+                claims[k].clone_from(&self.targets[k].regions);
                 continue;
             }
             let s = &old_regions[k];
@@ -572,11 +571,7 @@ impl WatershedSiftTracker {
                     ..self.targets[k].clone()
                 };
                 let bi = bidir_of(&own);
-                if !bi.is_empty() {
-                    for j in bi {
-                        push(&mut claims[k], j, Provenance::Bidirectional);
-                    }
-                } else {
+                if bi.is_empty() {
                     let l = lab(pixel(self.targets[k].centre, w, h));
                     let (pos, d) = Self::features(&mut cache, &seg, &geo, &[l], None)?;
                     let tg = &self.targets[k];
@@ -615,6 +610,10 @@ impl WatershedSiftTracker {
                         });
                     }
                     push(&mut claims[k], l, Provenance::Occlusion);
+                } else {
+                    for j in bi {
+                        push(&mut claims[k], j, Provenance::Bidirectional);
+                    }
                 }
                 continue;
             }

@@ -339,7 +339,8 @@ impl<D: PoolDescriptor> WeightedPool<D> {
             }
         }
         let before = self.entries.len();
-        self.entries.retain(|e| !(e.weight < p.delete_below));
+        // weights are finite (finite parameters), so `>=` is the negation of the strict `<`
+        self.entries.retain(|e| e.weight >= p.delete_below);
         stats.deleted = before - self.entries.len();
         for (k, w) in insert {
             self.entries.push(PoolEntry {
