@@ -68,6 +68,7 @@ enum Command {
     Segment(cmd::segment::SegmentArgs),
     Motion(cmd::motion::MotionArgs),
     Rgbd(cmd::rgbd::RgbdArgs),
+    Video(cmd::video::VideoArgs),
 }
 
 fn main() -> ExitCode {
@@ -89,6 +90,7 @@ fn main() -> ExitCode {
         Command::Segment(a) => cmd::segment::run(a, &out),
         Command::Motion(a) => cmd::motion::run(a, &out),
         Command::Rgbd(a) => cmd::rgbd::run(a, &out),
+        Command::Video(a) => cmd::video::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

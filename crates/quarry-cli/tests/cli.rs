@@ -604,4 +604,171 @@ fn slamot_runs_stop_cleanly_on_sigint_and_report_the_runs_done() {
     assert!((1..100_000).contains(&n), "{n} runs");
     assert_eq!(v["per_run"].as_array().unwrap().len() as u64, n);
     assert!(v["robot_err_mean"].as_f64().unwrap().is_finite(), "{v}");
+
+/// Writes `n` grey PNG frames of `w x h` (a dark disc moving right on a gradient) into `dir`.
+fn write_frames(dir: &std::path::Path, n: u32, w: u32, h: u32) {
+    std::fs::create_dir_all(dir).unwrap();
+    for k in 0..n {
+        let img = image::GrayImage::from_fn(w, h, |x, y| {
+            let cx = 10.0 + 2.0 * f64::from(k);
+            let d = (f64::from(x) - cx).hypot(f64::from(y) - f64::from(h) / 2.0);
+            image::Luma([if d < 5.0 {
+                40
+            } else {
+                (150 + (x + y) % 50) as u8
+            }])
+        });
+        img.save(dir.join(format!("{:06}.png", k + 1))).unwrap();
+    }
+}
+
+#[test]
+fn video_runs_writes_results_and_scores_like_eval() {
+    let d = tmpdir("video-ok");
+    let frames = d.join("img1");
+    write_frames(&frames, 12, 64, 48);
+    let gt = d.join("gt.txt");
+    let mut body = String::new();
+    for k in 0..12u32 {
+        let cx = 10.0 + 2.0 * f64::from(k);
+        use std::fmt::Write as _;
+        writeln!(body, "{},1,{},{},12,30,1,-1,-1,-1", k + 1, cx - 5.0, 10.0).unwrap();
+    }
+    std::fs::write(&gt, body).unwrap();
+    let out = d.join("out");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "video",
+        "--frames",
+        frames.to_str().unwrap(),
+        "--gt",
+        gt.to_str().unwrap(),
+        "--profile",
+        "robust",
+        "--person-size",
+        "12x30",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["frames"], 12);
+    assert_eq!(v["profile"], "robust");
+    assert_eq!(v["config"]["box_w"], 12.0);
+    let res = out.join(format!("{}.txt", v["name"].as_str().unwrap()));
+    assert!(res.exists(), "{v}");
+    assert!(out.join("config.toml").exists());
+    assert!(out.join("frames/000001.png").exists());
+    // the metrics are those of `quarry eval` on the written files
+    let (c2, s2, e2) = quarry(&[
+        "--json",
+        "eval",
+        "--gt",
+        gt.to_str().unwrap(),
+        "--res",
+        res.to_str().unwrap(),
+    ]);
+    assert_eq!(c2, 0, "{e2}");
+    let e: Value = serde_json::from_str(s2.trim()).unwrap();
+    for k in ["mota", "idf1", "hota", "fp", "fn", "idsw"] {
+        assert_eq!(v["metrics"][k], e[k], "{k}");
+    }
+}
+
+#[test]
+fn video_bad_input_is_a_clear_error_naming_the_file() {
+    let d = tmpdir("video-bad");
+    let run = |frames: &std::path::Path, extra: &[&str]| {
+        let mut a = vec!["video", "--frames", frames.to_str().unwrap()];
+        a.extend_from_slice(extra);
+        let out = d.join("out");
+        a.extend_from_slice(&["--out", out.to_str().unwrap(), "--no-images"]);
+        let (code, _o, e) = quarry(&a);
+        assert_ne!(code, 0);
+        assert!(!e.contains("panicked"), "{e}");
+        e
+    };
+    // empty directory
+    let empty = d.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let e = run(&empty, &[]);
+    assert!(
+        e.contains("empty") && e.contains("no PNG or JPEG frames"),
+        "{e}"
+    );
+    // truncated image
+    let trunc = d.join("trunc");
+    write_frames(&trunc, 3, 40, 30);
+    let p = trunc.join("000002.png");
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    let e = run(&trunc, &[]);
+    assert!(e.contains("000002.png"), "{e}");
+    // unreadable (not an image at all)
+    let junk = d.join("junk");
+    write_frames(&junk, 2, 40, 30);
+    std::fs::write(junk.join("000003.png"), b"not a png").unwrap();
+    let e = run(&junk, &[]);
+    assert!(e.contains("000003.png"), "{e}");
+    // frames of different sizes
+    let mixed = d.join("mixed");
+    write_frames(&mixed, 2, 40, 30);
+    image::GrayImage::new(41, 30)
+        .save(mixed.join("000003.png"))
+        .unwrap();
+    let e = run(&mixed, &[]);
+    assert!(e.contains("000003.png") && e.contains("same size"), "{e}");
+    // a 1x1 frame
+    let tiny = d.join("tiny");
+    std::fs::create_dir_all(&tiny).unwrap();
+    image::GrayImage::new(1, 1)
+        .save(tiny.join("000001.png"))
+        .unwrap();
+    let e = run(&tiny, &[]);
+    assert!(e.contains("000001.png") && e.contains("1x1"), "{e}");
+    // ground truth that does not parse
+    let ok = d.join("ok");
+    write_frames(&ok, 2, 40, 30);
+    let gt = d.join("bad_gt.txt");
+    std::fs::write(&gt, "1,2,three\n").unwrap();
+    let e = run(&ok, &["--gt", gt.to_str().unwrap()]);
+    assert!(e.contains("bad_gt.txt"), "{e}");
+    // a config with an unknown key: file and line
+    let cfg = d.join("bad.toml");
+    std::fs::write(&cfg, "sigma = 4.0\nsigmaa = 2.0\n").unwrap();
+    let e = run(&ok, &["--config", cfg.to_str().unwrap()]);
+    assert!(e.contains("bad.toml") && e.contains("line 2"), "{e}");
+}
+
+#[test]
+fn video_on_pets_if_present() {
+    let Some(sh) = shared() else { return };
+    let frames = sh.join("data/pets09-s2l1/img1");
+    if !frames.exists() {
+        eprintln!("skipping: no {}", frames.display());
+        return;
+    }
+    let d = tmpdir("video-pets");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "video",
+        "--frames",
+        frames.to_str().unwrap(),
+        "--gt",
+        sh.join("data/pets09-s2l1/gt.txt").to_str().unwrap(),
+        "--range",
+        "1..30",
+        "--person-size",
+        "32x84",
+        "--profile",
+        "robust",
+        "--no-images",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["frames"], 30);
+    assert!(v["metrics"]["gt"].as_u64().unwrap() > 0);
+    assert!(v["tracks"].as_u64().unwrap() >= 1, "{v}");
 }

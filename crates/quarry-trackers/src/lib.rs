@@ -32,6 +32,7 @@ mod error;
 pub mod lidar_people;
 pub mod rgbd_person;
 pub mod slamot;
+pub mod watershed_sift;
 
 pub use config::{PresetName, TrackerConfig};
 pub use error::TrackerError;

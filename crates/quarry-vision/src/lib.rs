@@ -5,7 +5,8 @@
 //! minima ([`minima`]), priority-flood (Meyer) watershed without lines
 //! ([`watershed`](mod@watershed)), region adjacency and statistics ([`adjacency`]), region mapping
 //! between frames ([`mapping`]), minimum trajectories and the moving-point test
-//! ([`moving_points`]), SIFT ([`sift`]) and descriptor matching ([`matching`]). Appearance
+//! ([`moving_points`]), SIFT ([`sift`]), descriptor matching ([`matching`]) and the weighted
+//! feature pool of spec 004 ([`features::pool`]). Appearance
 //! descriptors of spec 001: hue binning ([`colour`]), Ojala LBP with riu2 / u2 mappings
 //! ([`lbp`]), normalised and depth histograms ([`histogram`]), per-pixel weights including the
 //! depth band ([`depth_weights`]) and N×N patch histograms ([`patches`]).
@@ -45,6 +46,7 @@ pub mod colour;
 pub mod convert;
 pub mod depth_weights;
 mod error;
+pub mod features;
 pub mod histogram;
 #[cfg(feature = "io")]
 pub mod io;
@@ -68,6 +70,7 @@ pub use blur::{Border, GaussianKernel, gaussian_blur_f32, gaussian_blur_f64};
 pub use colour::HueBinner;
 pub use depth_weights::{DepthBand, PixelWeight};
 pub use error::VisionError;
+pub use features::pool::{PoolDescriptor, PoolEntry, PoolParams, PoolUpdateStats, WeightedPool};
 pub use histogram::{DepthHistogram, Histogram};
 pub use lbp::LbpMapping;
 pub use mapping::{LinkKind, RegionMapping};

@@ -136,7 +136,8 @@ pub struct EvalReport {
 }
 
 impl EvalReport {
-    fn new(s: &MotSummary, dist: Option<f64>, threshold: f64) -> Self {
+    /// The report of a summary (`dist`: world matching, else IoU).
+    pub fn new(s: &MotSummary, dist: Option<f64>, threshold: f64) -> Self {
         let c = &s.clear;
         Self {
             mota: c.mota(),

@@ -12,3 +12,4 @@ pub mod rgbd;
 pub mod segment;
 pub mod sift;
 pub mod slamot;
+pub mod video;

@@ -6,10 +6,11 @@ use std::time::Instant;
 
 use clap::Args;
 use image::Rgb;
+use quarry_trackers::watershed_sift::{MotionFrontEnd, Polarity, mapping_counts};
+use quarry_vision::MotionTest;
 use quarry_vision::convert::rgb_to_gray_bt601;
 use quarry_vision::io::load_rgb;
 use quarry_vision::render::{draw_cross, draw_polyline, grey_to_rgb};
-use quarry_vision::{MinimumTrajectories, MotionTest, RampBlurWatershed, RegionMapping};
 use serde::Serialize;
 
 use crate::output::{CmdResult, Output, Table};
@@ -139,10 +140,8 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
         std::fs::create_dir_all(&args.out)
             .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     }
-    let segmenter = RampBlurWatershed::new(args.sigma);
+    let mut front = MotionFrontEnd::new(args.sigma, 256, Polarity::Dark, test)?;
     let pb = progress::bar(out, (b - a + 1) as u64, "motion");
-    let mut prev: Option<quarry_core::Segmentation> = None;
-    let mut traj: Option<MinimumTrajectories> = None;
     let mut per_frame = Vec::new();
     let mut total_ms = 0.0;
     crate::interrupt::install();
@@ -153,17 +152,14 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
         let frame_no = a + k;
         let grey = rgb_to_gray_bt601(&load_rgb(path)?);
         let t = Instant::now();
-        let seg = segmenter.run(&grey)?.segmentation;
-        let (bidir, merges, splits) = if let (Some(p), Some(tr)) = (&prev, &mut traj) {
-            let map = RegionMapping::new(p, &seg)?;
-            tr.advance(&map, &seg)?;
-            (map.bidirectional.len(), map.merges.len(), map.splits.len())
-        } else {
-            traj = Some(MinimumTrajectories::new(args.n, &seg)?);
-            (0, 0, 0)
-        };
-        let tr = traj.as_ref().ok_or("internal: no trajectories")?;
-        let moving = tr.moving_points(&test)?;
+        // the per-frame loop lives in the library: segment, map, trajectories, moving points
+        front
+            .step(&grey)
+            .map_err(|e| format!("frame {}: {e}", path.display()))?;
+        let (bidir, merges, splits) = front.mapping().map_or((0, 0, 0), mapping_counts);
+        let seg = front.current().ok_or("internal: no segmentation")?;
+        let tr = front.trajectories().ok_or("internal: no trajectories")?;
+        let moving = front.moving();
         total_ms += t.elapsed().as_secs_f64() * 1e3;
 
         if !args.no_images {
@@ -174,7 +170,7 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
                     draw_polyline(&mut img, &pts, Rgb([255, 220, 0]));
                 }
             }
-            for (label, _) in &moving {
+            for (label, _) in moving {
                 if let Some(t) = tr.get(*label) {
                     let pts: Vec<(u32, u32)> = t.iter().copied().collect();
                     draw_polyline(&mut img, &pts, Rgb([255, 0, 0]));
@@ -206,7 +202,6 @@ pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
                 })
                 .collect(),
         });
-        prev = Some(seg);
         pb.inc(1);
     }
     pb.finish_and_clear();

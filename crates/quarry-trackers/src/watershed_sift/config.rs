@@ -1,0 +1,403 @@
+//! [`WatershedSiftConfig`]: every parameter of spec 004 §3, serde/TOML, `Default` = `paper`.
+//!
+//! Tags on each field: **\[paper\]** stated in the paper (spec §3.1), **\[spec\]** a gap the spec
+//! resolved (§3.2, §6), **\[ext\]** an extension that is off in `paper` and on in `robust`
+//! (spec §3.2 last paragraph), **\[ours\]** a choice of this implementation, with its reason.
+
+use crate::TrackerError;
+use quarry_vision::{MotionTest, PoolParams};
+use serde::{Deserialize, Serialize};
+
+/// The two profiles of spec 004.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Profile {
+    /// The paper with the spec's resolutions, every extension off (default).
+    #[default]
+    Paper,
+    /// The paper plus the documented extensions: coherent grouping, offset voting, n_min = 3,
+    /// the region gate, and the real-video fixes of docs/video-tracker.md.
+    Robust,
+}
+
+impl crate::PresetName for Profile {
+    const ALL: &'static [Self] = &[Self::Paper, Self::Robust];
+    const TRACKER: &'static str = "watershed_sift";
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Robust => "robust",
+        }
+    }
+
+    fn about(self) -> &'static str {
+        match self {
+            Self::Paper => "the paper with the spec's gap fills, no extension (default)",
+            Self::Robust => "the paper plus the spec's extensions and the real-video fixes",
+        }
+    }
+}
+
+/// Which grey level a person is assumed to have against the ground (spec §2.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Polarity {
+    /// People darker than the background: segment `I` (the paper's assumption).
+    #[default]
+    Dark,
+    /// People brighter: segment `255 - I` [ext].
+    Bright,
+}
+
+/// Largest accepted blur σ, pixels (the blur refuses wider kernels anyway).
+pub const MAX_SIGMA: f64 = 64.0;
+/// Largest accepted box side, pixels.
+pub const MAX_BOX_SIDE: f64 = 4096.0;
+/// Largest trajectory length N.
+pub const MAX_N: usize = 1000;
+/// Largest frame count of the termination rules.
+pub const MAX_FRAMES_RULE: usize = 100_000;
+
+/// Every parameter of spec 004 §3.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WatershedSiftConfig {
+    /// Which profile the values below came from (informational; the values rule).
+    pub preset: Profile,
+
+    // ----- segmentation (§2.2-2.5) -----
+    /// Gaussian σ before the watershed, pixels [paper: 8.0 for 30-px-wide people; set per
+    /// sequence as ≈ 0.27·`box_w`, §5.4 — see [`WatershedSiftConfig::with_person_size`]].
+    pub sigma: f64,
+    /// Grey levels L of eq. (2) [paper: 256].
+    pub levels: u32,
+    /// Person polarity [paper: dark; `bright` is an ext].
+    pub polarity: Polarity,
+
+    // ----- target box (§2.9) -----
+    /// Box width w, pixels: the ROI and the reported box [paper: 30; per sequence, the typical
+    /// person width, §5.4, never from ground truth].
+    pub box_w: f64,
+    /// Box height h, pixels [paper: 80; per sequence, the typical person height].
+    pub box_h: f64,
+
+    // ----- moving points (§2.8) -----
+    /// Trajectory length N, frames [paper: 10].
+    pub n: usize,
+    /// Displacement threshold M_Thred of eq. (6), pixels (L1) [paper: 0].
+    pub m_thred: f64,
+    /// Variance threshold V_Thred of eq. (7) [paper: 0.01].
+    pub v_thred: f64,
+
+    // ----- SIFT pools (§2.10-2.12) -----
+    /// D_Thred of eq. (9), L2 on u8 descriptors of norm ≈ 512 [paper: 150; scale spec A5].
+    pub d_thred: f32,
+    /// ρ of the ratio test [paper: 0.5].
+    pub ratio: f32,
+    /// ρ on squared distances [spec A5: false].
+    pub ratio_on_squared: bool,
+    /// W_del, pool deletion threshold [paper: -7].
+    pub w_del: f64,
+    /// Pool safety cap [spec: 1000].
+    pub pool_cap: usize,
+    /// τ_split, split-region ownership ratio [paper: 0.48].
+    pub tau_split: f64,
+    /// n_min, fewest keypoints for the ownership test [spec: 1; `robust`: 3].
+    pub n_min: usize,
+    /// SIFT crop padding around an area, pixels [spec: 24].
+    pub sift_pad: u32,
+    /// Up-sample the SIFT input ×2 (first octave −1) [spec §4.1: true, OpenCV's default].
+    pub sift_upsample: bool,
+
+    // ----- tracking (§2.13-2.15) -----
+    /// D_near of the distance rule (step 5), pixels [spec A9: 15 = w/2].
+    pub d_near: f64,
+    /// Separation needs at least this many pool matches [spec: 1].
+    pub separation_min_matches: usize,
+
+    // ----- termination (§2.16) -----
+    /// Exit rule: frames of history d_K [spec: 10].
+    pub exit_frames: usize,
+    /// Stuck rule: frames of history d_K [spec: 50].
+    pub stuck_frames: usize,
+    /// Distance under which a target counts as not moving, pixels [spec: 3].
+    pub still_px: f64,
+    /// Lost rule: consecutive frames without a region [spec: 10].
+    pub lost_frames: usize,
+
+    // ----- extensions -----
+    /// Coherent grouping of adjacent moving points before creating a target (§2.15) [ext].
+    pub coherent_grouping: bool,
+    /// Coherent grouping: largest relative difference of displacement lengths [ext: 0.3].
+    pub group_len_tol: f64,
+    /// Coherent grouping: largest angle between displacements, degrees [ext: 30].
+    pub group_angle_deg: f64,
+    /// Grouping radius: moving points whose minima lie within this many pixels of the first
+    /// one (horizontally `box_w`, vertically `box_h` times this factor) are grouped even when
+    /// their regions are not adjacent [ours, `robust`: 0.5 — at σ ≈ 0.27 w a person's blurred
+    /// image often holds two minima whose basins are separated by a thin background basin;
+    /// 0 = adjacency only, the spec's rule].
+    pub group_box_frac: f64,
+    /// Occluded targets located by voting with the stored offsets δ (§2.14) [ext].
+    pub offset_voting: bool,
+    /// Region gate: drop a region whose minimum lies outside a `gate_w`·w × `gate_h`·h box
+    /// around the previous centre [ext: on in `robust`].
+    pub region_gate: bool,
+    /// Region gate width in box widths [ext: 2].
+    pub gate_w: f64,
+    /// Region gate height in box heights [ext: 1.5].
+    pub gate_h: f64,
+    /// No new target whose box centre would lie within this fraction of a box of a live
+    /// target's centre (a second minimum of a person already tracked) [ours, `robust`: 0.5 —
+    /// the paper creates a target for every unowned moving point, which on real video doubles
+    /// people whose blurred image keeps two minima (spec A7); 0 = off].
+    pub min_new_separation: f64,
+    /// Fuse two visible targets whose boxes overlap with IoU at least this for `fuse_frames`
+    /// consecutive frames: the younger is absorbed by the older (regions joined, the older's id
+    /// and pool kept) [ours, `robust`: 0.5 — the IoU at which the evaluation would match both
+    /// boxes to one person; on real video one person often ends up followed by two targets
+    /// (two minima after the blur, a fragment that started its own target, spec A7); occluded
+    /// targets are never fused; 0 = off].
+    pub fuse_iou: f64,
+    /// Consecutive frames of overlap before a fusion [ours, `robust`: 3 — a short confirmation,
+    /// well under the N = 10 frames a new target needs].
+    pub fuse_frames: usize,
+    /// Report a target only from this many frames after its creation [ours, `robust`: 0 — off;
+    /// the paper reports from the detection frame].
+    pub report_after: usize,
+}
+
+impl Default for WatershedSiftConfig {
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+impl WatershedSiftConfig {
+    /// The `paper` profile: the values of spec §3.1-3.2, every extension off.
+    pub fn paper() -> Self {
+        Self {
+            preset: Profile::Paper,
+            sigma: 8.0,
+            levels: 256,
+            polarity: Polarity::Dark,
+            box_w: 30.0,
+            box_h: 80.0,
+            n: 10,
+            m_thred: 0.0,
+            v_thred: 0.01,
+            d_thred: 150.0,
+            ratio: 0.5,
+            ratio_on_squared: false,
+            w_del: -7.0,
+            pool_cap: 1000,
+            tau_split: 0.48,
+            n_min: 1,
+            sift_pad: 24,
+            sift_upsample: true,
+            d_near: 15.0,
+            separation_min_matches: 1,
+            exit_frames: 10,
+            stuck_frames: 50,
+            still_px: 3.0,
+            lost_frames: 10,
+            coherent_grouping: false,
+            group_len_tol: 0.3,
+            group_angle_deg: 30.0,
+            group_box_frac: 0.0,
+            offset_voting: false,
+            region_gate: false,
+            gate_w: 2.0,
+            gate_h: 1.5,
+            min_new_separation: 0.0,
+            fuse_iou: 0.0,
+            fuse_frames: 3,
+            report_after: 0,
+        }
+    }
+
+    /// The `robust` profile: `paper` plus the spec's extensions (coherent grouping, offset
+    /// voting, n_min = 3, region gate) and this implementation's real-video fixes.
+    pub fn robust() -> Self {
+        Self {
+            preset: Profile::Robust,
+            n_min: 3,
+            coherent_grouping: true,
+            group_box_frac: 0.5,
+            offset_voting: true,
+            region_gate: true,
+            min_new_separation: 0.5,
+            fuse_iou: 0.5,
+            ..Self::paper()
+        }
+    }
+
+    /// This configuration for a sequence whose typical person is `w` × `h` pixels (spec §5.4):
+    /// the box becomes `w` × `h`, σ = w·8/30 (the paper's ratio), and D_near = w/2 (spec A9).
+    pub fn with_person_size(mut self, w: f64, h: f64) -> Self {
+        self.box_w = w;
+        self.box_h = h;
+        self.sigma = w * 8.0 / 30.0;
+        self.d_near = w / 2.0;
+        self
+    }
+
+    /// The moving-point test of these parameters.
+    pub fn motion_test(&self) -> MotionTest {
+        MotionTest {
+            n: self.n,
+            m_thred: self.m_thred,
+            v_thred: self.v_thred,
+        }
+    }
+
+    /// The pool parameters of these parameters.
+    pub fn pool_params(&self) -> PoolParams {
+        PoolParams {
+            d_thred: self.d_thred,
+            ratio: self.ratio,
+            ratio_on_squared: self.ratio_on_squared,
+            delete_below: self.w_del,
+            cap: self.pool_cap,
+            ..PoolParams::default()
+        }
+    }
+}
+
+impl crate::TrackerConfig for WatershedSiftConfig {
+    type Preset = Profile;
+    const NAME: &'static str = "watershed_sift";
+
+    fn preset(p: Profile) -> Self {
+        match p {
+            Profile::Paper => Self::paper(),
+            Profile::Robust => Self::robust(),
+        }
+    }
+
+    fn validate(&self) -> Result<(), TrackerError> {
+        let err = |r: String| Err(TrackerError::config("watershed_sift", r));
+        if !(self.sigma.is_finite() && self.sigma > 0.0 && self.sigma <= MAX_SIGMA) {
+            return err(format!(
+                "sigma must be in (0, {MAX_SIGMA}], got {}",
+                self.sigma
+            ));
+        }
+        if !(8..=65536).contains(&self.levels) {
+            return err(format!("levels must be in 8..=65536, got {}", self.levels));
+        }
+        for (name, v) in [("box_w", self.box_w), ("box_h", self.box_h)] {
+            if !(v.is_finite() && (2.0..=MAX_BOX_SIDE).contains(&v)) {
+                return err(format!("{name} must be in [2, {MAX_BOX_SIDE}], got {v}"));
+            }
+        }
+        if !(2..=MAX_N).contains(&self.n) {
+            return err(format!("n must be in 2..={MAX_N}, got {}", self.n));
+        }
+        for (name, v) in [
+            ("m_thred", self.m_thred),
+            ("v_thred", self.v_thred),
+            ("d_near", self.d_near),
+            ("still_px", self.still_px),
+            ("group_len_tol", self.group_len_tol),
+            ("group_angle_deg", self.group_angle_deg),
+            ("group_box_frac", self.group_box_frac),
+            ("gate_w", self.gate_w),
+            ("gate_h", self.gate_h),
+            ("min_new_separation", self.min_new_separation),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return err(format!("{name} must be finite and >= 0, got {v}"));
+            }
+        }
+        if !(self.fuse_iou.is_finite() && (0.0..=1.0).contains(&self.fuse_iou)) {
+            return err(format!("fuse_iou must be in [0, 1], got {}", self.fuse_iou));
+        }
+        if !(self.tau_split.is_finite() && (0.0..=1.0).contains(&self.tau_split)) {
+            return err(format!(
+                "tau_split must be in [0, 1], got {}",
+                self.tau_split
+            ));
+        }
+        if self.n_min == 0 {
+            return err("n_min must be >= 1".into());
+        }
+        if self.sift_pad > 1024 {
+            return err(format!(
+                "sift_pad must be at most 1024, got {}",
+                self.sift_pad
+            ));
+        }
+        for (name, v) in [
+            ("exit_frames", self.exit_frames),
+            ("stuck_frames", self.stuck_frames),
+            ("lost_frames", self.lost_frames),
+            ("report_after", self.report_after),
+            ("fuse_frames", self.fuse_frames),
+        ] {
+            if v > MAX_FRAMES_RULE {
+                return err(format!("{name} must be at most {MAX_FRAMES_RULE}, got {v}"));
+            }
+        }
+        if self.exit_frames == 0 || self.stuck_frames == 0 {
+            return err("exit_frames and stuck_frames must be >= 1".into());
+        }
+        self.pool_params()
+            .validate()
+            .map_err(|e| TrackerError::config("watershed_sift", e.to_string()))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{PresetName, TrackerConfig};
+
+    #[test]
+    fn presets_are_valid_and_round_trip() {
+        for p in Profile::ALL {
+            let c = WatershedSiftConfig::preset(*p);
+            c.validate().unwrap();
+            let t = c.to_toml().unwrap();
+            assert_eq!(WatershedSiftConfig::from_toml(&t, None).unwrap(), c);
+        }
+        assert_eq!(WatershedSiftConfig::default(), WatershedSiftConfig::paper());
+        let r = WatershedSiftConfig::from_toml("preset = \"robust\"\nsigma = 9.0\n", None).unwrap();
+        assert_eq!(r.n_min, 3);
+        assert_eq!(r.sigma, 9.0);
+        assert_eq!(Profile::parse("robust").unwrap(), Profile::Robust);
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_are_named() {
+        let e = WatershedSiftConfig::from_toml("x = 1\nsigmaa = 2.0\n", None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 1") || e.contains("line 2"), "{e}");
+        for (toml, name) in [
+            ("sigma = -1.0", "sigma"),
+            ("box_w = 0.0", "box_w"),
+            ("tau_split = 2.0", "tau_split"),
+            ("n = 1", "n"),
+            ("d_thred = 0.0", "d_thred"),
+            ("n_min = 0", "n_min"),
+        ] {
+            let e = WatershedSiftConfig::from_toml(toml, None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(name), "{toml}: {e}");
+        }
+    }
+
+    #[test]
+    fn person_size_sets_box_sigma_and_d_near() {
+        let c = WatershedSiftConfig::paper().with_person_size(36.0, 90.0);
+        assert_eq!((c.box_w, c.box_h), (36.0, 90.0));
+        assert!((c.sigma - 9.6).abs() < 1e-12);
+        assert_eq!(c.d_near, 18.0);
+        let p = WatershedSiftConfig::paper().with_person_size(30.0, 80.0);
+        assert_eq!(p, WatershedSiftConfig::paper());
+    }
+}

@@ -1,0 +1,1095 @@
+//! [`WatershedSiftTracker`]: the per-frame procedure of spec 004 §2.17.
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::time::Instant;
+
+use quarry_core::{
+    BBox, Keypoint, MultiTargetTracker, Plane, Segmentation, Stamp, TrackFlags, TrackId,
+    TrackReport, TrackStatus,
+};
+use quarry_vision::{
+    LinkKind, RegionAdjacency, RegionMapping, Sift, SiftDescriptor, SiftParams, WeightedPool,
+};
+use serde::Serialize;
+
+use super::config::WatershedSiftConfig;
+use super::frontend::MotionFrontEnd;
+use crate::{TrackerConfig, TrackerError};
+
+/// How a region entered a target's list (spec §2.9); the order is the priority of step 7.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub enum Provenance {
+    /// The bidirectional successor of one of the target's regions (step 1).
+    Bidirectional,
+    /// A one-way successor (step 3).
+    Merge,
+    /// A fragment accepted by the SIFT ownership test (step 4).
+    SplitSift,
+    /// Close to one of the target's old minima (step 5).
+    Distance,
+    /// A moving point absorbed or starting the target (step 6).
+    MovingPoint,
+    /// The occlusion region of an occluded target (§2.14).
+    Occlusion,
+    /// A region assigned at separation (§2.15).
+    Separation,
+}
+
+impl Provenance {
+    /// Rank of step 7's priority (lower wins).
+    fn rank(self) -> u8 {
+        match self {
+            Self::Separation | Self::Occlusion => 0,
+            Self::Bidirectional => 1,
+            Self::Merge => 2,
+            Self::SplitSift => 3,
+            Self::Distance => 4,
+            Self::MovingPoint => 5,
+        }
+    }
+}
+
+/// One region of a target's list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct RegionRef {
+    /// Label in the current frame's label image.
+    pub label: u32,
+    /// Its representative minimum `(x, y)`.
+    pub minimum: (u32, u32),
+    /// How it was added.
+    pub provenance: Provenance,
+}
+
+/// A tracked person (spec §2.9).
+#[derive(Debug, Clone)]
+pub struct Target {
+    /// Identity (never reused).
+    pub id: TrackId,
+    /// Tracked through an occlusion (§2.14) in the last frame.
+    pub occluded: bool,
+    /// The region list S_k.
+    pub regions: Vec<RegionRef>,
+    /// Centre O_c, eq. (8).
+    pub centre: [f64; 2],
+    /// The weighted SIFT pool.
+    pub pool: WeightedPool<SiftDescriptor>,
+    /// The previous frame's ROI descriptors D_prev.
+    pub prev_desc: Vec<SiftDescriptor>,
+    /// Frame index of creation.
+    pub born: u64,
+    history: VecDeque<[f64; 2]>,
+    lost: usize,
+    fresh: bool,
+    placed: bool,
+    /// Consecutive frames of box overlap with younger targets (fusion, an extension).
+    fuse_streak: BTreeMap<TrackId, usize>,
+}
+
+/// Per-target diagnostics of one frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TargetDiagnostics {
+    /// Target id.
+    pub id: u32,
+    /// Centre O_c.
+    pub centre: [f64; 2],
+    /// Pool size.
+    pub pool: usize,
+    /// Occluded in this frame.
+    pub occluded: bool,
+    /// Number of regions.
+    pub regions: usize,
+}
+
+/// Wall-clock time per stage of one frame, microseconds (diagnostics only).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct StageTimes {
+    /// Ramp, blur, minima, watershed (the front end's segmentation).
+    pub segment_us: f64,
+    /// Region mapping, adjacency, trajectories and the moving-point test.
+    pub map_us: f64,
+    /// SIFT on target areas.
+    pub sift_us: f64,
+    /// Everything else: ownership tests, pools, resolution.
+    pub track_us: f64,
+}
+
+/// What happened in one frame (spec §8 `FrameDiagnostics`, for the figures of §5.3).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct FrameDiagnostics {
+    /// 0-based frame index.
+    pub frame: u64,
+    /// Number of watershed regions.
+    pub regions: usize,
+    /// Bidirectional links from the previous frame.
+    pub bidirectional: usize,
+    /// Merges.
+    pub merges: usize,
+    /// Splits.
+    pub splits: usize,
+    /// Moving points `(x, y)` of this frame.
+    pub moving: Vec<(u32, u32)>,
+    /// Targets alive after this frame.
+    pub targets: Vec<TargetDiagnostics>,
+    /// Occlusion groups of this frame (target ids).
+    pub occlusion_groups: Vec<Vec<u32>>,
+    /// Targets created.
+    pub created: usize,
+    /// Targets terminated.
+    pub terminated: usize,
+    /// Stage times.
+    pub times: StageTimes,
+}
+
+/// SIFT results per crop rectangle of the current frame (spec §2.10: memoised per frame).
+struct FeatureCache<'a> {
+    frame: &'a Plane<u8>,
+    sift: &'a Sift,
+    pad: u32,
+    crops: BTreeMap<[u32; 4], (Vec<Keypoint>, Vec<SiftDescriptor>)>,
+    us: f64,
+}
+
+impl FeatureCache<'_> {
+    /// Keypoints and descriptors of the crop `[x0, y0, x1, y1]` (inclusive) padded by `pad`,
+    /// in frame coordinates.
+    fn crop(
+        &mut self,
+        rect: [u32; 4],
+    ) -> Result<&(Vec<Keypoint>, Vec<SiftDescriptor>), TrackerError> {
+        let (w, h) = self.frame.dimensions();
+        let x0 = rect[0].saturating_sub(self.pad);
+        let y0 = rect[1].saturating_sub(self.pad);
+        let x1 = (rect[2] + self.pad).min(w - 1);
+        let y1 = (rect[3] + self.pad).min(h - 1);
+        let key = [x0, y0, x1, y1];
+        if !self.crops.contains_key(&key) {
+            let t = Instant::now();
+            let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+            let result = if cw < quarry_vision::sift::MIN_SIDE || ch < quarry_vision::sift::MIN_SIDE
+            {
+                (Vec::new(), Vec::new())
+            } else {
+                let sub = Plane::from_fn(cw, ch, |x, y| {
+                    self.frame.data[(y0 + y) as usize * w as usize + (x0 + x) as usize]
+                });
+                let (mut kps, d) = self.sift.extract(&sub)?;
+                for k in &mut kps {
+                    k.x += x0 as f32;
+                    k.y += y0 as f32;
+                }
+                (kps, d)
+            };
+            self.us += t.elapsed().as_secs_f64() * 1e6;
+            self.crops.insert(key, result);
+        }
+        Ok(&self.crops[&key])
+    }
+}
+
+/// Per-frame region geometry.
+struct RegionGeometry {
+    /// Inclusive bounding boxes `[x0, y0, x1, y1]`, by label − 1.
+    bbox: Vec<[u32; 4]>,
+}
+
+impl RegionGeometry {
+    fn new(seg: &Segmentation) -> Self {
+        let mut bbox = vec![[u32::MAX, u32::MAX, 0, 0]; seg.n_regions()];
+        let w = seg.labels.width as usize;
+        for (i, &l) in seg.labels.data.iter().enumerate() {
+            if l == 0 {
+                continue;
+            }
+            let (x, y) = ((i % w) as u32, (i / w) as u32);
+            let b = &mut bbox[l as usize - 1];
+            b[0] = b[0].min(x);
+            b[1] = b[1].min(y);
+            b[2] = b[2].max(x);
+            b[3] = b[3].max(y);
+        }
+        Self { bbox }
+    }
+}
+
+/// The watershed + SIFT pools tracker of spec 004 (Hu et al. 2012): input the grey frame,
+/// output one fixed-size box per target (see the module docs).
+#[derive(Debug, Clone)]
+pub struct WatershedSiftTracker {
+    cfg: WatershedSiftConfig,
+    front: MotionFrontEnd,
+    sift: Sift,
+    targets: Vec<Target>,
+    /// Occlusion groups of the previous frame: (label of that frame, member ids).
+    groups_prev: Vec<(u32, Vec<TrackId>)>,
+    next_id: u32,
+    frames: u64,
+    diagnostics: FrameDiagnostics,
+}
+
+/// `p` rounded half away from zero and clamped into a `w × h` image.
+fn pixel(p: [f64; 2], w: u32, h: u32) -> (u32, u32) {
+    let c = |v: f64, n: u32| v.round().clamp(0.0, f64::from(n - 1)) as u32;
+    (c(p[0], w), c(p[1], h))
+}
+
+fn dist(a: (u32, u32), b: [f64; 2]) -> f64 {
+    (f64::from(a.0) - b[0]).hypot(f64::from(a.1) - b[1])
+}
+
+impl WatershedSiftTracker {
+    /// A tracker from a configuration (validated here).
+    pub fn new(cfg: WatershedSiftConfig) -> Result<Self, TrackerError> {
+        cfg.validate()?;
+        let front = MotionFrontEnd::new(cfg.sigma, cfg.levels, cfg.polarity, cfg.motion_test())?;
+        let sift = Sift::new(SiftParams {
+            upsample: cfg.sift_upsample,
+            ..SiftParams::default()
+        })?;
+        Ok(Self {
+            cfg,
+            front,
+            sift,
+            targets: Vec::new(),
+            groups_prev: Vec::new(),
+            next_id: 1,
+            frames: 0,
+            diagnostics: FrameDiagnostics::default(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &WatershedSiftConfig {
+        &self.cfg
+    }
+
+    /// The live targets.
+    pub fn targets(&self) -> &[Target] {
+        &self.targets
+    }
+
+    /// What happened in the last frame.
+    pub fn diagnostics(&self) -> &FrameDiagnostics {
+        &self.diagnostics
+    }
+
+    /// The motion front end (segmentation, mapping, trajectories of the last frame).
+    pub fn front_end(&self) -> &MotionFrontEnd {
+        &self.front
+    }
+
+    /// The box of a target centred at `c`.
+    fn bbox(&self, c: [f64; 2]) -> BBox {
+        BBox {
+            cx: c[0],
+            cy: c[1],
+            w: self.cfg.box_w,
+            h: self.cfg.box_h,
+        }
+    }
+
+    /// SIFT of the pixels of `labels` (∩ `clip` when given, a box `[x0, y0, x1, y1]` with
+    /// real bounds `x0 <= x < x1`): (positions, descriptors).
+    fn features(
+        cache: &mut FeatureCache<'_>,
+        seg: &Segmentation,
+        geo: &RegionGeometry,
+        labels: &[u32],
+        clip: Option<[f64; 4]>,
+    ) -> Result<(Vec<[f64; 2]>, Vec<SiftDescriptor>), TrackerError> {
+        let (w, h) = seg.labels.dimensions();
+        let mut r = [u32::MAX, u32::MAX, 0u32, 0u32];
+        for &l in labels {
+            let Some(b) = geo.bbox.get(l as usize - 1) else {
+                continue;
+            };
+            if b[0] > b[2] {
+                continue;
+            }
+            r = [
+                r[0].min(b[0]),
+                r[1].min(b[1]),
+                r[2].max(b[2]),
+                r[3].max(b[3]),
+            ];
+        }
+        if let Some(c) = clip {
+            let lo = |v: f64, n: u32| v.ceil().clamp(0.0, f64::from(n - 1)) as u32;
+            let hi = |v: f64, n: u32| (v.ceil() - 1.0).clamp(0.0, f64::from(n - 1)) as u32;
+            r = [
+                r[0].max(lo(c[0], w)),
+                r[1].max(lo(c[1], h)),
+                r[2].min(hi(c[2], w)),
+                r[3].min(hi(c[3], h)),
+            ];
+        }
+        if r[0] > r[2] || r[1] > r[3] {
+            return Ok((Vec::new(), Vec::new()));
+        }
+        let (kps, desc) = cache.crop(r)?;
+        let mut pos = Vec::new();
+        let mut out = Vec::new();
+        for (k, d) in kps.iter().zip(desc) {
+            let (x, y) = pixel([f64::from(k.x), f64::from(k.y)], w, h);
+            if let Some(c) = clip {
+                let (fx, fy) = (f64::from(x), f64::from(y));
+                if !(fx >= c[0] && fx < c[2] && fy >= c[1] && fy < c[3]) {
+                    continue;
+                }
+            }
+            let l = seg.labels.data[y as usize * w as usize + x as usize];
+            if labels.contains(&l) {
+                pos.push([f64::from(k.x), f64::from(k.y)]);
+                out.push(*d);
+            }
+        }
+        Ok((pos, out))
+    }
+
+    fn roi_clip(&self, c: [f64; 2]) -> [f64; 4] {
+        let (hw, hh) = (self.cfg.box_w / 2.0, self.cfg.box_h / 2.0);
+        [c[0] - hw, c[1] - hh, c[0] + hw, c[1] + hh]
+    }
+
+    /// One frame (spec §2.17). Returns the reports of the live targets with at least one
+    /// region.
+    fn process(
+        &mut self,
+        stamp: Stamp,
+        frame: &Plane<u8>,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        let t0 = Instant::now();
+        self.front.step(frame)?;
+        let t_seg = t0.elapsed().as_secs_f64() * 1e6;
+        let t = stamp.frame.0;
+        self.frames += 1;
+        let (Some(seg), Some(prev), Some(map)) = (
+            self.front.current(),
+            self.front.previous(),
+            self.front.mapping(),
+        ) else {
+            // the first frame: nothing to track yet
+            let seg = self.front.current().ok_or_else(|| {
+                TrackerError::State("internal: no segmentation after a step".into())
+            })?;
+            self.diagnostics = FrameDiagnostics {
+                frame: t,
+                regions: seg.n_regions(),
+                times: StageTimes {
+                    segment_us: t_seg,
+                    ..StageTimes::default()
+                },
+                ..FrameDiagnostics::default()
+            };
+            return Ok(Vec::new());
+        };
+        // clones keep the borrow checker simple; the segmentations are a few MB
+        let seg = seg.clone();
+        let prev = prev.clone();
+        let map = map.clone();
+        let t1 = Instant::now();
+        let adj = RegionAdjacency::from_segmentation(&seg)?;
+        let geo = RegionGeometry::new(&seg);
+        let traj = self
+            .front
+            .trajectories()
+            .ok_or_else(|| TrackerError::State("internal: no trajectories".into()))?;
+        let mut moving: Vec<(u32, f64, [f64; 2])> = self
+            .front
+            .moving()
+            .iter()
+            .map(|(l, s)| {
+                let d = traj.get(*l).map_or([0.0; 2], |tr| {
+                    let (a, b) = (tr[0], tr[tr.len() - 1]);
+                    [
+                        f64::from(b.0) - f64::from(a.0),
+                        f64::from(b.1) - f64::from(a.1),
+                    ]
+                });
+                (*l, s.displacement, d)
+            })
+            .collect();
+        moving.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let t_map = t1.elapsed().as_secs_f64() * 1e6;
+        let t2 = Instant::now();
+        let mut cache = FeatureCache {
+            frame,
+            sift: &self.sift,
+            pad: self.cfg.sift_pad,
+            crops: BTreeMap::new(),
+            us: 0.0,
+        };
+        let (w, h) = seg.labels.dimensions();
+        let lab = |p: (u32, u32)| seg.labels.data[p.1 as usize * w as usize + p.0 as usize];
+        let minimum = |l: u32| seg.minima[l as usize - 1].representative;
+        let n_t = self.targets.len();
+
+        // ----- occlusion detection (§2.14) -----
+        let mut groups: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+        for (k, tg) in self.targets.iter().enumerate() {
+            if !tg.regions.is_empty() {
+                groups
+                    .entry(lab(pixel(tg.centre, w, h)))
+                    .or_default()
+                    .push(k);
+            }
+        }
+        // ----- separation (§2.15) -----
+        let bidir_of = |tg: &Target| -> Vec<u32> {
+            tg.regions
+                .iter()
+                .filter_map(|r| match map.successor(r.label) {
+                    Some((j, LinkKind::Bidirectional)) => Some(j),
+                    _ => None,
+                })
+                .collect()
+        };
+        for tg in &mut self.targets {
+            tg.placed = false;
+        }
+        let groups_prev = std::mem::take(&mut self.groups_prev);
+        for (lp, members) in &groups_prev {
+            let jset: Vec<u32> = map
+                .backward
+                .iter()
+                .enumerate()
+                .filter(|&(_, &i)| i == *lp)
+                .map(|(j, _)| j as u32 + 1)
+                .collect();
+            if jset.len() < 2 {
+                continue;
+            }
+            let idx: Vec<usize> = members
+                .iter()
+                .filter_map(|id| self.targets.iter().position(|t| t.id == *id))
+                .collect();
+            let bidir_taken: BTreeSet<u32> = idx
+                .iter()
+                .flat_map(|&k| bidir_of(&self.targets[k]))
+                .collect();
+            let tf: Vec<usize> = idx
+                .iter()
+                .copied()
+                .filter(|&k| bidir_of(&self.targets[k]).is_empty())
+                .collect();
+            let mut counts: Vec<(usize, usize, u32)> = Vec::new();
+            for &j in &jset {
+                if bidir_taken.contains(&j) {
+                    continue;
+                }
+                let (_, d) = Self::features(&mut cache, &seg, &geo, &[j], None)?;
+                for &k in &tf {
+                    let c = self.targets[k].pool.count_matches(&d);
+                    if c >= self.cfg.separation_min_matches.max(1) {
+                        counts.push((c, k, j));
+                    }
+                }
+            }
+            counts.sort_by(|a, b| {
+                b.0.cmp(&a.0)
+                    .then(self.targets[a.1].id.cmp(&self.targets[b.1].id))
+                    .then(a.2.cmp(&b.2))
+            });
+            let (mut used_k, mut used_j) = (BTreeSet::new(), BTreeSet::new());
+            for (_, k, j) in counts {
+                if used_k.contains(&k) || used_j.contains(&j) {
+                    continue;
+                }
+                used_k.insert(k);
+                used_j.insert(j);
+                let tg = &mut self.targets[k];
+                tg.regions = vec![RegionRef {
+                    label: j,
+                    minimum: minimum(j),
+                    provenance: Provenance::Separation,
+                }];
+                let m = minimum(j);
+                tg.centre = [f64::from(m.0), f64::from(m.1)];
+                tg.placed = true;
+                tg.occluded = false;
+            }
+        }
+        // placed targets leave this frame's groups; a group with < 2 members dissolves
+        let mut occluded = vec![false; n_t];
+        let mut groups_now: Vec<(u32, Vec<TrackId>)> = Vec::new();
+        for (l, ks) in &groups {
+            let ks: Vec<usize> = ks
+                .iter()
+                .copied()
+                .filter(|&k| !self.targets[k].placed)
+                .collect();
+            if ks.len() >= 2 {
+                for &k in &ks {
+                    occluded[k] = true;
+                }
+                groups_now.push((*l, ks.iter().map(|&k| self.targets[k].id).collect()));
+            }
+        }
+
+        // ----- steps 1-5 and occluded tracking -----
+        // provisional regions (primary successors) for the ownership candidates
+        let provisional: Vec<Vec<u32>> = self
+            .targets
+            .iter()
+            .map(|tg| {
+                tg.regions
+                    .iter()
+                    .filter_map(|r| map.successor(r.label).map(|s| s.0))
+                    .collect()
+            })
+            .collect();
+        let mut claims: Vec<Vec<RegionRef>> = vec![Vec::new(); n_t];
+        let mut located: Vec<Option<[f64; 2]>> = vec![None; n_t];
+        let push = |list: &mut Vec<RegionRef>, label: u32, p: Provenance| {
+            if !list.iter().any(|r| r.label == label) {
+                list.push(RegionRef {
+                    label,
+                    minimum: minimum(label),
+                    provenance: p,
+                });
+            }
+        };
+        let old_regions: Vec<Vec<RegionRef>> =
+            self.targets.iter().map(|t| t.regions.clone()).collect();
+        let _ = &prev;
+        for k in 0..n_t {
+            if self.targets[k].placed {
+                claims[k].clone_from(&self.targets[k].regions);
+                continue;
+            }
+            let s = &old_regions[k];
+            if occluded[k] {
+                // Bi_k: the bidirectional successors of the target's *own* regions; the shared
+                // occlusion region of the previous frame is not one of them (read literally,
+                // §2.14 would hand its successor to every member, and the members would share
+                // one centre for as long as the group lasts)
+                let own = Target {
+                    regions: s
+                        .iter()
+                        .filter(|r| r.provenance != Provenance::Occlusion)
+                        .copied()
+                        .collect(),
+                    ..self.targets[k].clone()
+                };
+                let bi = bidir_of(&own);
+                if bi.is_empty() {
+                    let l = lab(pixel(self.targets[k].centre, w, h));
+                    let (pos, d) = Self::features(&mut cache, &seg, &geo, &[l], None)?;
+                    let tg = &self.targets[k];
+                    let mut pts = Vec::new();
+                    for (p, dd) in pos.iter().zip(&d) {
+                        if let Some(q) = tg.pool.matched_entry(dd) {
+                            if self.cfg.offset_voting {
+                                let off = tg.pool.entries()[q].offset;
+                                pts.push([p[0] - off[0], p[1] - off[1]]);
+                            } else {
+                                pts.push(*p);
+                            }
+                        }
+                    }
+                    if !pts.is_empty() {
+                        located[k] = Some(if self.cfg.offset_voting {
+                            let med = |mut v: Vec<f64>| {
+                                v.sort_by(f64::total_cmp);
+                                let n = v.len();
+                                if n % 2 == 1 {
+                                    v[n / 2]
+                                } else {
+                                    0.5 * (v[n / 2 - 1] + v[n / 2])
+                                }
+                            };
+                            [
+                                med(pts.iter().map(|p| p[0]).collect()),
+                                med(pts.iter().map(|p| p[1]).collect()),
+                            ]
+                        } else {
+                            let n = pts.len() as f64;
+                            [
+                                pts.iter().map(|p| p[0]).sum::<f64>() / n,
+                                pts.iter().map(|p| p[1]).sum::<f64>() / n,
+                            ]
+                        });
+                    }
+                    push(&mut claims[k], l, Provenance::Occlusion);
+                } else {
+                    for j in bi {
+                        push(&mut claims[k], j, Provenance::Bidirectional);
+                    }
+                }
+                continue;
+            }
+            // steps 1 and 3: primary successors
+            for r in s {
+                if let Some((j, kind)) = map.successor(r.label) {
+                    let p = if kind == LinkKind::Bidirectional {
+                        Provenance::Bidirectional
+                    } else {
+                        Provenance::Merge
+                    };
+                    push(&mut claims[k], j, p);
+                }
+            }
+            // step 4: fragments, by the ownership test
+            for r in s {
+                for &j in map.fragments(r.label) {
+                    if claims[k].iter().any(|c| c.label == j) {
+                        continue;
+                    }
+                    let (_, d) = Self::features(&mut cache, &seg, &geo, &[j], None)?;
+                    if d.len() < self.cfg.n_min {
+                        continue;
+                    }
+                    let mut cands: Vec<usize> = vec![k];
+                    for (o, pr) in provisional.iter().enumerate() {
+                        if o != k && pr.iter().any(|&l| adj.are_adjacent(l, j)) {
+                            cands.push(o);
+                        }
+                    }
+                    let mut best: Option<(f64, usize)> = None;
+                    for &o in &cands {
+                        let tg = &self.targets[o];
+                        if let Some(r) = tg.pool.ownership_ratio(&d, &tg.prev_desc)
+                            && r > self.cfg.tau_split
+                            && best.is_none_or(|(b, bo)| {
+                                r > b || (r == b && self.targets[o].id < self.targets[bo].id)
+                            })
+                        {
+                            best = Some((r, o));
+                        }
+                    }
+                    if let Some((_, o)) = best {
+                        push(&mut claims[o], j, Provenance::SplitSift);
+                    }
+                }
+            }
+            // step 5: the distance rule
+            let olds: Vec<(u32, u32)> = s.iter().map(|r| r.minimum).collect();
+            if !olds.is_empty() {
+                for (jj, m) in seg.minima.iter().enumerate() {
+                    let j = jj as u32 + 1;
+                    let near = olds.iter().any(|o| {
+                        (f64::from(m.representative.0) - f64::from(o.0))
+                            .hypot(f64::from(m.representative.1) - f64::from(o.1))
+                            < self.cfg.d_near
+                    });
+                    if near {
+                        push(&mut claims[k], j, Provenance::Distance);
+                    }
+                }
+            }
+            // [ext] region gate around the previous centre
+            if self.cfg.region_gate {
+                let c = self.targets[k].centre;
+                let (gw, gh) = (
+                    self.cfg.gate_w * self.cfg.box_w / 2.0,
+                    self.cfg.gate_h * self.cfg.box_h / 2.0,
+                );
+                claims[k].retain(|r| {
+                    (f64::from(r.minimum.0) - c[0]).abs() <= gw
+                        && (f64::from(r.minimum.1) - c[1]).abs() <= gh
+                });
+            }
+        }
+
+        // ----- step 6: moving points -----
+        let mut created = 0;
+        let owned_by = |claims: &Vec<Vec<RegionRef>>, j: u32| -> bool {
+            claims.iter().any(|c| c.iter().any(|r| r.label == j))
+        };
+        let mut consumed: BTreeSet<u32> = BTreeSet::new();
+        for mi in 0..moving.len() {
+            let (j, _, disp) = moving[mi];
+            if consumed.contains(&j) || owned_by(&claims, j) {
+                continue;
+            }
+            let neigh: Vec<usize> = (0..claims.len())
+                .filter(|&o| claims[o].iter().any(|r| adj.are_adjacent(r.label, j)))
+                .collect();
+            if !neigh.is_empty() {
+                let (_, d) = Self::features(&mut cache, &seg, &geo, &[j], None)?;
+                if d.len() >= self.cfg.n_min {
+                    let mut best: Option<(f64, usize)> = None;
+                    for &o in &neigh {
+                        let (pool, prevd) = if o < n_t {
+                            (&self.targets[o].pool, &self.targets[o].prev_desc)
+                        } else {
+                            // a target created earlier in this frame has no pool yet: its
+                            // first ROI is its only appearance; it cannot own by SIFT
+                            continue;
+                        };
+                        if let Some(r) = pool.ownership_ratio(&d, prevd)
+                            && r > self.cfg.tau_split
+                            && best.is_none_or(|(b, _)| r > b)
+                        {
+                            best = Some((r, o));
+                        }
+                    }
+                    if let Some((_, o)) = best {
+                        push(&mut claims[o], j, Provenance::MovingPoint);
+                        continue;
+                    }
+                }
+            }
+            // create a target
+            let mut regions = vec![j];
+            if self.cfg.coherent_grouping {
+                let a = minimum(j);
+                for &(j2, _, d2) in &moving[mi + 1..] {
+                    if consumed.contains(&j2) || owned_by(&claims, j2) {
+                        continue;
+                    }
+                    let b = minimum(j2);
+                    let near = adj.are_adjacent(j, j2)
+                        || (self.cfg.group_box_frac > 0.0
+                            && (f64::from(a.0) - f64::from(b.0)).abs()
+                                <= self.cfg.group_box_frac * self.cfg.box_w
+                            && (f64::from(a.1) - f64::from(b.1)).abs()
+                                <= self.cfg.group_box_frac * self.cfg.box_h);
+                    if !near {
+                        continue;
+                    }
+                    let (l1, l2) = (disp[0].hypot(disp[1]), d2[0].hypot(d2[1]));
+                    if l1 <= 0.0 || l2 <= 0.0 {
+                        continue;
+                    }
+                    let rel = (l1 - l2).abs() / l1.max(l2);
+                    let cosang = (disp[0] * d2[0] + disp[1] * d2[1]) / (l1 * l2);
+                    let ang = cosang.clamp(-1.0, 1.0).acos().to_degrees();
+                    if rel < self.cfg.group_len_tol && ang < self.cfg.group_angle_deg {
+                        regions.push(j2);
+                    }
+                }
+            }
+            let ms: Vec<(u32, u32)> = regions.iter().map(|&l| minimum(l)).collect();
+            let n = ms.len() as f64;
+            let centre = [
+                ms.iter().map(|m| f64::from(m.0)).sum::<f64>() / n,
+                ms.iter().map(|m| f64::from(m.1)).sum::<f64>() / n,
+            ];
+            if self.cfg.min_new_separation > 0.0 {
+                let too_close = self.targets.iter().any(|tg| {
+                    (tg.centre[0] - centre[0]).abs() < self.cfg.min_new_separation * self.cfg.box_w
+                        && (tg.centre[1] - centre[1]).abs()
+                            < self.cfg.min_new_separation * self.cfg.box_h
+                });
+                if too_close {
+                    continue;
+                }
+            }
+            for &l in &regions {
+                consumed.insert(l);
+            }
+            let id = TrackId(self.next_id);
+            self.next_id += 1;
+            created += 1;
+            self.targets.push(Target {
+                id,
+                occluded: false,
+                regions: Vec::new(),
+                centre,
+                pool: WeightedPool::new(self.cfg.pool_params())?,
+                prev_desc: Vec::new(),
+                born: t,
+                history: VecDeque::new(),
+                lost: 0,
+                fresh: true,
+                placed: false,
+                fuse_streak: BTreeMap::new(),
+            });
+            occluded.push(false);
+            located.push(None);
+            claims.push(
+                regions
+                    .iter()
+                    .map(|&l| RegionRef {
+                        label: l,
+                        minimum: minimum(l),
+                        provenance: Provenance::MovingPoint,
+                    })
+                    .collect(),
+            );
+        }
+
+        // ----- step 7: resolve and centre -----
+        let n_all = self.targets.len();
+        // regions held by occluded or just-separated targets are theirs alone
+        let reserved: BTreeSet<u32> = (0..n_all)
+            .filter(|&k| occluded[k] || self.targets[k].placed)
+            .flat_map(|k| claims[k].iter().map(|r| r.label).collect::<Vec<_>>())
+            .collect();
+        let mut winner: BTreeMap<u32, usize> = BTreeMap::new();
+        for k in 0..n_all {
+            if occluded[k] || self.targets[k].placed {
+                continue;
+            }
+            for r in &claims[k] {
+                if reserved.contains(&r.label) {
+                    continue;
+                }
+                let better = match winner.get(&r.label) {
+                    None => true,
+                    Some(&o) => {
+                        let ro = claims[o]
+                            .iter()
+                            .find(|x| x.label == r.label)
+                            .map_or(u8::MAX, |x| x.provenance.rank());
+                        let (dk, dn) = (
+                            dist(r.minimum, self.targets[k].centre),
+                            dist(r.minimum, self.targets[o].centre),
+                        );
+                        (r.provenance.rank(), dk, self.targets[k].id) < (ro, dn, self.targets[o].id)
+                    }
+                };
+                if better {
+                    winner.insert(r.label, k);
+                }
+            }
+        }
+        for k in 0..n_all {
+            let keep: Vec<RegionRef> = if occluded[k] || self.targets[k].placed {
+                claims[k].clone()
+            } else {
+                claims[k]
+                    .iter()
+                    .filter(|r| winner.get(&r.label) == Some(&k))
+                    .copied()
+                    .collect()
+            };
+            let tg = &mut self.targets[k];
+            tg.occluded = occluded[k];
+            tg.regions = keep;
+            if tg.regions.is_empty() {
+                tg.lost += 1;
+            } else {
+                tg.lost = 0;
+                if let Some(c) = located[k] {
+                    tg.centre = c;
+                } else if !(tg.occluded
+                    && tg
+                        .regions
+                        .iter()
+                        .all(|r| r.provenance == Provenance::Occlusion))
+                {
+                    let n = tg.regions.len() as f64;
+                    tg.centre = [
+                        tg.regions
+                            .iter()
+                            .map(|r| f64::from(r.minimum.0))
+                            .sum::<f64>()
+                            / n,
+                        tg.regions
+                            .iter()
+                            .map(|r| f64::from(r.minimum.1))
+                            .sum::<f64>()
+                            / n,
+                    ];
+                }
+            }
+        }
+
+        // ----- step 8: pools -----
+        for k in 0..n_all {
+            let (skip, c) = {
+                let tg = &self.targets[k];
+                (tg.occluded || tg.placed || tg.regions.is_empty(), tg.centre)
+            };
+            if skip {
+                continue;
+            }
+            let labels: Vec<u32> = self.targets[k].regions.iter().map(|r| r.label).collect();
+            let clip = self.roi_clip(c);
+            let (pos, d) = Self::features(&mut cache, &seg, &geo, &labels, Some(clip))?;
+            let offs: Vec<[f64; 2]> = pos.iter().map(|p| [p[0] - c[0], p[1] - c[1]]).collect();
+            let tg = &mut self.targets[k];
+            if tg.fresh {
+                tg.pool.seed(t, &d, &offs)?;
+                tg.fresh = false;
+            } else {
+                let prevd = std::mem::take(&mut tg.prev_desc);
+                tg.pool.update(t, &d, &offs, &prevd)?;
+            }
+            tg.prev_desc = d;
+        }
+        let sift_us = cache.us;
+
+        // ----- [ours] fusion of targets that follow one person -----
+        if self.cfg.fuse_iou > 0.0 {
+            self.fuse();
+        }
+
+        // ----- termination (§2.16) -----
+        let (bw, bh) = (self.cfg.box_w / 2.0, self.cfg.box_h / 2.0);
+        let (fw, fh) = (f64::from(w) - 1.0, f64::from(h) - 1.0);
+        let before = self.targets.len();
+        let cfg = &self.cfg;
+        self.targets.retain_mut(|tg| {
+            tg.history.push_back(tg.centre);
+            let keep = cfg.exit_frames.max(cfg.stuck_frames) + 1;
+            while tg.history.len() > keep {
+                tg.history.pop_front();
+            }
+            let d_k = |k: usize| -> Option<f64> {
+                let n = tg.history.len();
+                (n > k).then(|| {
+                    let (a, b) = (tg.history[n - 1], tg.history[n - 1 - k]);
+                    (a[0] - b[0]).hypot(a[1] - b[1])
+                })
+            };
+            let c = tg.centre;
+            let in_band = c[0] < bw || c[0] > fw - bw || c[1] < bh || c[1] > fh - bh;
+            let exit = in_band && d_k(cfg.exit_frames).is_some_and(|d| d < cfg.still_px);
+            let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px);
+            let lost = tg.lost > cfg.lost_frames;
+            !(exit || stuck || lost)
+        });
+        let terminated = before - self.targets.len();
+        let ids: BTreeSet<TrackId> = self.targets.iter().map(|t| t.id).collect();
+        self.groups_prev = groups_now
+            .into_iter()
+            .filter_map(|(l, m)| {
+                let m: Vec<TrackId> = m.into_iter().filter(|i| ids.contains(i)).collect();
+                (m.len() >= 2).then_some((l, m))
+            })
+            .collect();
+        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us;
+
+        // ----- reports -----
+        let mut reports = Vec::new();
+        for tg in &self.targets {
+            if tg.regions.is_empty() || t < tg.born + self.cfg.report_after as u64 {
+                continue;
+            }
+            let mut r = TrackReport::new(
+                stamp,
+                tg.id,
+                if tg.occluded {
+                    TrackStatus::Occluded
+                } else {
+                    TrackStatus::Confirmed
+                },
+            );
+            r.bbox = Some(self.bbox(tg.centre));
+            r.score = Some(1.0);
+            if tg.born == t {
+                r.flags = TrackFlags::BORN;
+            }
+            reports.push(r);
+        }
+        self.diagnostics = FrameDiagnostics {
+            frame: t,
+            regions: seg.n_regions(),
+            bidirectional: map.bidirectional.len(),
+            merges: map.merges.len(),
+            splits: map.splits.len(),
+            moving: moving.iter().map(|m| minimum(m.0)).collect(),
+            targets: self
+                .targets
+                .iter()
+                .map(|tg| TargetDiagnostics {
+                    id: tg.id.0,
+                    centre: tg.centre,
+                    pool: tg.pool.len(),
+                    occluded: tg.occluded,
+                    regions: tg.regions.len(),
+                })
+                .collect(),
+            occlusion_groups: self
+                .groups_prev
+                .iter()
+                .map(|(_, m)| m.iter().map(|i| i.0).collect())
+                .collect(),
+            created,
+            terminated,
+            times: StageTimes {
+                segment_us: t_seg,
+                map_us: t_map,
+                sift_us,
+                track_us: t_track.max(0.0),
+            },
+        };
+        Ok(reports)
+    }
+}
+
+impl WatershedSiftTracker {
+    /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
+    /// consecutive frames: the younger (larger id) joins the older.
+    fn fuse(&mut self) {
+        let n = self.targets.len();
+        let visible = |t: &Target| !t.occluded && !t.regions.is_empty();
+        let mut absorbed = vec![false; n];
+        for i in 0..n {
+            let mut streak = std::mem::take(&mut self.targets[i].fuse_streak);
+            let mut next = BTreeMap::new();
+            for j in 0..n {
+                if i == j || absorbed[i] || absorbed[j] || self.targets[j].id <= self.targets[i].id
+                {
+                    continue;
+                }
+                let (a, b) = (&self.targets[i], &self.targets[j]);
+                if !(visible(a) && visible(b)) {
+                    continue;
+                }
+                if self.bbox(a.centre).iou(&self.bbox(b.centre)) >= self.cfg.fuse_iou {
+                    let s = streak.get(&b.id).copied().unwrap_or(0) + 1;
+                    if s >= self.cfg.fuse_frames.max(1) {
+                        absorbed[j] = true;
+                        let regs = std::mem::take(&mut self.targets[j].regions);
+                        let a = &mut self.targets[i];
+                        for r in regs {
+                            if !a.regions.iter().any(|x| x.label == r.label) {
+                                a.regions.push(r);
+                            }
+                        }
+                        let m = a.regions.len() as f64;
+                        a.centre = [
+                            a.regions
+                                .iter()
+                                .map(|r| f64::from(r.minimum.0))
+                                .sum::<f64>()
+                                / m,
+                            a.regions
+                                .iter()
+                                .map(|r| f64::from(r.minimum.1))
+                                .sum::<f64>()
+                                / m,
+                        ];
+                    } else {
+                        next.insert(b.id, s);
+                    }
+                }
+            }
+            streak.clear();
+            self.targets[i].fuse_streak = next;
+        }
+        let mut k = 0;
+        self.targets.retain(|_| {
+            let keep = !absorbed[k];
+            k += 1;
+            keep
+        });
+    }
+}
+
+impl MultiTargetTracker for WatershedSiftTracker {
+    type Input = Plane<u8>;
+    type Error = TrackerError;
+
+    /// Tracks one grey frame. Errors: a frame smaller than 2×2, a frame of another size than
+    /// the first, a frame whose pixel count does not match its size.
+    fn step(&mut self, stamp: Stamp, input: &Plane<u8>) -> Result<Vec<TrackReport>, TrackerError> {
+        if input.data.len() != input.width as usize * input.height as usize {
+            return Err(TrackerError::State(format!(
+                "frame data has {} pixels for a {}x{} frame",
+                input.data.len(),
+                input.width,
+                input.height
+            )));
+        }
+        self.process(stamp, input)
+    }
+}
+
+/// Reads a mapping's relation counts (used by the diagnostics of callers).
+pub fn mapping_counts(map: &RegionMapping) -> (usize, usize, usize) {
+    (map.bidirectional.len(), map.merges.len(), map.splits.len())
+}
