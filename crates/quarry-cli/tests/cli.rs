@@ -604,6 +604,7 @@ fn slamot_runs_stop_cleanly_on_sigint_and_report_the_runs_done() {
     assert!((1..100_000).contains(&n), "{n} runs");
     assert_eq!(v["per_run"].as_array().unwrap().len() as u64, n);
     assert!(v["robot_err_mean"].as_f64().unwrap().is_finite(), "{v}");
+}
 
 /// Writes `n` grey PNG frames of `w x h` (a dark disc moving right on a gradient) into `dir`.
 fn write_frames(dir: &std::path::Path, n: u32, w: u32, h: u32) {
