@@ -390,6 +390,7 @@ fn broken_and_oversized_images_are_refused() {
     assert!(stderr.contains("too large"), "{stderr}");
 }
 
+#[cfg(all(unix, feature = "zenoh"))]
 /// A free TCP port on 127.0.0.1 (bound and released; the test binds it again at once).
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -414,7 +415,7 @@ fn wait_child(child: &mut std::process::Child, limit: std::time::Duration) -> i3
     }
 }
 
-#[cfg(unix)]
+#[cfg(all(unix, feature = "zenoh"))]
 #[test]
 fn lidar_server_refuses_an_unknown_sensor_and_stops_cleanly_on_sigterm() {
     use std::process::Stdio;
