@@ -46,7 +46,7 @@ pub enum Polarity {
     /// People darker than the background: segment `I` (the paper's assumption).
     #[default]
     Dark,
-    /// People brighter: segment `255 - I` [ext].
+    /// People brighter: segment `255 - I` \[ext\].
     Bright,
 }
 
@@ -127,7 +127,7 @@ pub struct WatershedSiftConfig {
     pub lost_frames: usize,
 
     // ----- extensions -----
-    /// Coherent grouping of adjacent moving points before creating a target (§2.15) [ext].
+    /// Coherent grouping of adjacent moving points before creating a target (§2.15) \[ext\].
     pub coherent_grouping: bool,
     /// Coherent grouping: largest relative difference of displacement lengths [ext: 0.3].
     pub group_len_tol: f64,
@@ -139,7 +139,7 @@ pub struct WatershedSiftConfig {
     /// image often holds two minima whose basins are separated by a thin background basin;
     /// 0 = adjacency only, the spec's rule].
     pub group_box_frac: f64,
-    /// Occluded targets located by voting with the stored offsets δ (§2.14) [ext].
+    /// Occluded targets located by voting with the stored offsets δ (§2.14) \[ext\].
     pub offset_voting: bool,
     /// Region gate: drop a region whose minimum lies outside a `gate_w`·w × `gate_h`·h box
     /// around the previous centre [ext: on in `robust`].
