@@ -99,26 +99,26 @@ struct MotionJson {
     per_frame: Vec<FrameJson>,
 }
 
-fn parse_range(s: &str, n: usize) -> Result<(usize, usize), String> {
+pub(crate) fn parse_range(flag: &str, s: &str, n: usize) -> Result<(usize, usize), String> {
     let (a, b) = s
         .split_once("..")
-        .ok_or_else(|| format!("--frames {s}: expected A..B"))?;
+        .ok_or_else(|| format!("{flag} {s}: expected A..B"))?;
     let a: usize = a
         .trim()
         .parse()
-        .map_err(|_| format!("--frames {s}: bad start"))?;
+        .map_err(|_| format!("{flag} {s}: bad start"))?;
     let b: usize = if b.trim().is_empty() {
         n
     } else {
         b.trim()
             .parse()
-            .map_err(|_| format!("--frames {s}: bad end"))?
+            .map_err(|_| format!("{flag} {s}: bad end"))?
     };
     if a == 0 || b < a {
-        return Err(format!("--frames {s}: need 1 <= A <= B"));
+        return Err(format!("{flag} {s}: need 1 <= A <= B"));
     }
     if b > n {
-        return Err(format!("--frames {s}: the directory has only {n} frames"));
+        return Err(format!("{flag} {s}: the directory has only {n} frames"));
     }
     Ok((a, b))
 }
@@ -127,7 +127,7 @@ fn parse_range(s: &str, n: usize) -> Result<(usize, usize), String> {
 pub fn run(args: &MotionArgs, out: &Output) -> CmdResult {
     let files = quarry_data::image_sequence::list_frames(&args.dir)?;
     let (a, b) = match &args.frames {
-        Some(s) => parse_range(s, files.len())?,
+        Some(s) => parse_range("--frames", s, files.len())?,
         None => (1, files.len()),
     };
     let test = MotionTest {
@@ -247,11 +247,11 @@ mod tests {
 
     #[test]
     fn ranges() {
-        assert_eq!(parse_range("1..5", 10), Ok((1, 5)));
-        assert_eq!(parse_range("3..", 10), Ok((3, 10)));
-        assert!(parse_range("0..5", 10).is_err());
-        assert!(parse_range("5..3", 10).is_err());
-        assert!(parse_range("1..11", 10).is_err());
-        assert!(parse_range("x", 10).is_err());
+        assert_eq!(parse_range("--frames", "1..5", 10), Ok((1, 5)));
+        assert_eq!(parse_range("--frames", "3..", 10), Ok((3, 10)));
+        assert!(parse_range("--frames", "0..5", 10).is_err());
+        assert!(parse_range("--frames", "5..3", 10).is_err());
+        assert!(parse_range("--frames", "1..11", 10).is_err());
+        assert!(parse_range("--frames", "x", 10).is_err());
     }
 }

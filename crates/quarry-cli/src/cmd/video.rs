@@ -133,30 +133,6 @@ fn parse_size(s: &str) -> Result<(f64, f64), String> {
     Ok((p(a)?, p(b)?))
 }
 
-fn parse_range(s: &str, n: usize) -> Result<(usize, usize), String> {
-    let (a, b) = s
-        .split_once("..")
-        .ok_or_else(|| format!("--range {s}: expected A..B"))?;
-    let a: usize = a
-        .trim()
-        .parse()
-        .map_err(|_| format!("--range {s}: bad start"))?;
-    let b: usize = if b.trim().is_empty() {
-        n
-    } else {
-        b.trim()
-            .parse()
-            .map_err(|_| format!("--range {s}: bad end"))?
-    };
-    if a == 0 || b < a {
-        return Err(format!("--range {s}: need 1 <= A <= B"));
-    }
-    if b > n {
-        return Err(format!("--range {s}: the directory has only {n} frames"));
-    }
-    Ok((a, b))
-}
-
 /// The sequence name of a frame directory.
 fn sequence_name(dir: &Path) -> String {
     let base = |p: &Path| p.file_name().map(|s| s.to_string_lossy().into_owned());
@@ -251,7 +227,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
     let files = quarry_data::image_sequence::list_frames(&args.frames)
         .map_err(|e| format!("--frames {}: {e}", args.frames.display()))?;
     let (a, b) = match &args.range {
-        Some(s) => parse_range(s, files.len())?,
+        Some(s) => super::motion::parse_range("--range", s, files.len())?,
         None => (1, files.len()),
     };
     // parse the ground truth before the long run, so that a bad file fails at once
@@ -428,14 +404,15 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
 
 #[cfg(test)]
 mod tests {
-    use super::{parse_range, parse_size};
+    use super::parse_size;
+    use crate::cmd::motion::parse_range;
 
     #[test]
     fn sizes_and_ranges() {
         assert_eq!(parse_size("36x90"), Ok((36.0, 90.0)));
         assert!(parse_size("36").is_err());
         assert!(parse_size("0x5").is_err());
-        assert_eq!(parse_range("2..4", 9), Ok((2, 4)));
-        assert!(parse_range("4..2", 9).is_err());
+        assert_eq!(parse_range("--range", "2..4", 9), Ok((2, 4)));
+        assert!(parse_range("--range", "4..2", 9).is_err());
     }
 }
