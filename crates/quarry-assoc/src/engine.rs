@@ -26,6 +26,18 @@
 //! is classic variable elimination / dynamic programming over a measurement ordering; it is
 //! not the patented Efficient Hypothesis Management (EHM) net, which is not implemented.
 //!
+//! # Scores beyond the range of `f64`
+//!
+//! Each track's scores are divided by the largest of them before anything is multiplied. A
+//! score more than e^690 below its row's largest (a clutter density near `f64::MIN_POSITIVE`,
+//! or a likelihood from a near-singular covariance) would then be a subnormal number with a
+//! few bits of precision or 0, and the sweeps would return rows that no longer sum to 1. Such a
+//! score is raised to e^−690 times the largest ([`LN_RATIO_FLOOR`]). β is then correct to
+//! about 1e−300, unless every joint event of a cluster contains a raised score: the events are
+//! then weighed as if those scores were e^−690 (their common factor cancels; only differences
+//! between raised scores are lost). A score that is exactly 0 (outside the gate, P_D = 0) stays
+//! 0.
+//!
 //! # Automatic choice ([`Method::Auto`])
 //!
 //! For each cluster: the exact DAG is built while it has at most [`Solver::max_states`] nodes
@@ -180,6 +192,19 @@ pub(crate) fn clusters_where(
     out
 }
 
+/// The smallest ratio ln(score / the row's largest score) the sweeps use (see the module docs):
+/// e^−690 ≈ 2.5e−300 stays a normal `f64`, and 1 / it stays below LBP's message cap 1e300.
+pub const LN_RATIO_FLOOR: f64 = -690.0;
+
+/// `exp(x)` for a scaled log score `x ≤ 0`, raised to `e^LN_RATIO_FLOOR`; `-inf` stays 0.
+fn floored_exp(x: f64) -> f64 {
+    if x == f64::NEG_INFINITY {
+        0.0
+    } else {
+        x.max(LN_RATIO_FLOOR).exp()
+    }
+}
+
 /// Per-track scores in the log domain: `ln L_i0` and `ln L_ij = ln_coef_i + ln g_ij`.
 pub(crate) struct Scores<'a> {
     pub lik: &'a LikelihoodMatrix,
@@ -227,9 +252,9 @@ pub(crate) fn marginals(sc: &Scores<'_>, solver: &Solver) -> Result<Marginals, C
                 break;
             }
             s[a] = mx;
-            w0[a] = (sc.ln_miss[i] - mx).exp();
+            w0[a] = floored_exp(sc.ln_miss[i] - mx);
             for (b, &j) in c.meas.iter().enumerate() {
-                w[a * nm + b] = (ln_det(i, j) - mx).exp();
+                w[a * nm + b] = floored_exp(ln_det(i, j) - mx);
             }
         }
         let local = if dead {
@@ -553,10 +578,22 @@ fn exact(
     let mut beta = vec![0.0; nt * (nm + 1)];
     let ln_c_dag = log_sf[nm];
     for l in 0..nm {
-        let scale = (log_sf[l] + log_sb[l + 1] - ln_c_dag).exp();
+        // p = fwd · w · bwd · e^{ln_scale} is a probability, but with extreme score ratios
+        // (e.g. a clutter density near f64::MIN_POSITIVE) the edge weight can be subnormal and
+        // e^{ln_scale} overflow to inf (inf · tiny = inf, a row summing to inf): past the
+        // overflow threshold the product is formed in the log domain instead.
+        let ln_scale = log_sf[l] + log_sb[l + 1] - ln_c_dag;
+        let scale = ln_scale.exp();
         let b = order[l];
         for e in &edges[l] {
-            let p = fwd[l][e.from as usize] * e.w * bwd[l + 1][e.to as usize] * scale;
+            let q = fwd[l][e.from as usize] * e.w * bwd[l + 1][e.to as usize];
+            let p = if scale.is_finite() {
+                q * scale
+            } else if q > 0.0 {
+                (q.ln() + ln_scale).exp()
+            } else {
+                0.0
+            };
             if e.track != u32::MAX {
                 beta[e.track as usize * (nm + 1) + b + 1] += p;
             }

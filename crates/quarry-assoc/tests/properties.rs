@@ -471,3 +471,85 @@ proptest! {
         if let Ok(a) = PaperLikelihood.associate(&lm, &pri) { prop_assert!(well_formed(&a, n, m)); }
     }
 }
+
+/// Fuzz regressions (fuzz/regressions/associator): a subnormal clutter density makes the
+/// detection scores ~e^711 times the miss scores. The scaled miss weights were subnormals (a
+/// few bits of precision) and the level scale e^{ln c} overflowed: β came out as inf, or rows
+/// summed to 0.99997. Every method must return finite rows that sum to 1, here with the two
+/// tracks sharing the one detection equally.
+#[test]
+fn extreme_score_ratios_give_finite_marginals() {
+    let lik = LikelihoodMatrix::new(DMatrix::from_row_slice(2, 1, &[2.1e-314, 3.2e-57])).unwrap();
+    let pri = [TrackPrior::default(); 2];
+    let methods = [
+        Method::Auto,
+        Method::Exact,
+        Method::Lbp,
+        Method::KBest { k: 4 },
+    ];
+    for method in methods {
+        let solver = Solver {
+            method,
+            ..Solver::default()
+        };
+        for kappa in [2.35e-310, 1e-300, f64::MIN_POSITIVE, 5e-324] {
+            let a = Jpda::new(0.2, 0.2, kappa)
+                .unwrap()
+                .with_solver(solver)
+                .associate(&lik, &pri)
+                .unwrap();
+            for i in 0..2 {
+                let row: Vec<f64> = a.beta.row(i).iter().copied().collect();
+                assert!(
+                    row.iter().all(|b| b.is_finite() && (0.0..=1.0).contains(b)),
+                    "{method:?} κ={kappa:e}: row {i} = {row:?}"
+                );
+                assert!(
+                    (row.iter().sum::<f64>() - 1.0).abs() < 1e-9,
+                    "{method:?} κ={kappa:e}: {row:?}"
+                );
+                assert!(
+                    (row[1] - 0.5).abs() < 1e-6,
+                    "{method:?} κ={kappa:e}: {row:?}"
+                );
+            }
+        }
+    }
+}
+
+/// The second fuzz input: three tracks, two detections, κ = 1.6e-319. Every joint event leaves
+/// a track missed (a score e^-733 below its row's best, raised to e^-690 by the engine).
+#[test]
+fn every_event_with_a_floored_score_still_gives_rows_summing_to_one() {
+    let lik = LikelihoodMatrix::new(DMatrix::from_row_slice(
+        3,
+        2,
+        &[-1.8e-6, -48.83, 0.0, 0.0, 0.0, 0.0],
+    ))
+    .unwrap();
+    let pri = [TrackPrior::default(); 3];
+    for method in [
+        Method::Auto,
+        Method::Exact,
+        Method::Lbp,
+        Method::KBest { k: 16 },
+    ] {
+        let solver = Solver {
+            method,
+            ..Solver::default()
+        };
+        let a = Jpda::new(0.945, 0.486, 1.5745e-319)
+            .unwrap()
+            .with_solver(solver)
+            .associate(&lik, &pri)
+            .unwrap();
+        for i in 0..3 {
+            let row: Vec<f64> = a.beta.row(i).iter().copied().collect();
+            assert!(row.iter().all(|b| b.is_finite() && (0.0..=1.0).contains(b)));
+            assert!(
+                (row.iter().sum::<f64>() - 1.0).abs() < 1e-9,
+                "{method:?}: {row:?}"
+            );
+        }
+    }
+}
