@@ -607,6 +607,49 @@ fn slamot_runs_stop_cleanly_on_sigint_and_report_the_runs_done() {
     assert!(v["robot_err_mean"].as_f64().unwrap().is_finite(), "{v}");
 }
 
+#[cfg(target_os = "linux")]
+#[test]
+fn slamot_sweep_stops_cleanly_on_sigint_and_keeps_only_complete_counts() {
+    let d = tmpdir("sweep-sigint");
+    let out = d.to_str().unwrap();
+    // 100 000 runs per count: the first count never completes before the signal
+    let (code, v) = interrupted_run(
+        &[
+            "--json",
+            "slamot",
+            "sweep",
+            "--particles",
+            "5,10",
+            "--runs",
+            "100000",
+            "--out",
+            out,
+        ],
+        std::time::Duration::ZERO,
+    );
+    assert_eq!(code, 130, "{v}");
+    assert_eq!(v["interrupted"], true, "{v}");
+    assert_eq!(v["points"].as_array().unwrap().len(), 0, "{v}");
+    let csv = std::fs::read_to_string(d.join("sweep.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1, "only the header: {csv}");
+    assert!(d.join("fig3.png").exists() && d.join("fig4.png").exists());
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn demo_stops_cleanly_on_sigint_after_the_tracker_in_progress() {
+    // the signal comes while the first rows run; the last tracker (rgbd) is never started
+    let (code, v) = interrupted_run(&["--json", "demo"], std::time::Duration::ZERO);
+    assert_eq!(code, 130, "{v}");
+    assert_eq!(v["interrupted"], true, "{v}");
+    let rows = v["rows"].as_array().unwrap();
+    assert!(
+        rows.iter()
+            .all(|r| !r["tracker"].as_str().unwrap().contains("rgbd")),
+        "{v}"
+    );
+}
+
 /// Writes `n` grey PNG frames of `w x h` (a dark disc moving right on a gradient) into `dir`.
 fn write_frames(dir: &std::path::Path, n: u32, w: u32, h: u32) {
     std::fs::create_dir_all(dir).unwrap();

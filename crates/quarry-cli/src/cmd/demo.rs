@@ -34,6 +34,12 @@ reports the position RMSE and the mean NEES with its 95 % chi-square interval (q
   rgbd-person / rgbd-baseline   the RGB-D person tracker (paper 001) and the whole-target \
 baseline on the first 210 frames of synthetic S1 (static robot, crossing occluder): success \
 at IoU 0.5 and centre error.
+  slamot   PFJPDA_SLAMOT (paper 000) on S0, one run with 50 particles: robot and target \
+mean errors beside the paper's.
+  lidar-people   the lidar people tracker (paper 003), faithful preset on the simulated room.
+
+Ctrl-C (or SIGTERM) ends the demo after the tracker in progress: the rows so far are printed \
+with \"interrupted\": true and the exit status is 130; a second Ctrl-C stops at once.
 
 JSON (--json) prints {\"seed\": N, \"rows\": [{\"tracker\", \"scenario\", \"metric\", \
 \"value\", \"paper\" (null when the paper has no such number), \"ms_per_frame\"}, ...]}.
@@ -98,6 +104,8 @@ fn slamot(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
 struct DemoReport<'a> {
     seed: u64,
     rows: &'a [Row],
+    /// Ctrl-C / SIGTERM stopped the demo: `rows` are those of the trackers that completed.
+    interrupted: bool,
 }
 
 /// Runs `quarry demo`.
@@ -115,9 +123,14 @@ pub fn run(args: &DemoArgs, out: &Output) -> CmdResult {
         )
         .into());
     }
+    crate::interrupt::install();
     let pb = progress::bar(out, selected.len() as u64, "demo");
     let mut rows = Vec::new();
     for (name, f) in selected {
+        // Ctrl-C ends the demo after the tracker in progress; the rows so far are shown
+        if crate::interrupt::requested() {
+            break;
+        }
         pb.set_message((*name).to_string());
         rows.extend(f(args).map_err(|e| format!("demo {name}: {e}"))?);
         pb.inc(1);
@@ -126,6 +139,7 @@ pub fn run(args: &DemoArgs, out: &Output) -> CmdResult {
     let report = DemoReport {
         seed: args.seed,
         rows: &rows,
+        interrupted: crate::interrupt::requested(),
     };
     out.emit(&report, || {
         let mut t = Table::new([
@@ -141,8 +155,19 @@ pub fn run(args: &DemoArgs, out: &Output) -> CmdResult {
                 fmt_opt(r.ms_per_frame, 4),
             ]);
         }
-        t.render()
-    })
+        if report.interrupted {
+            format!(
+                "interrupted: the rows of the trackers that completed\n{}",
+                t.render()
+            )
+        } else {
+            t.render()
+        }
+    })?;
+    if report.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 /// Kalman filter on a simulated constant-velocity target: position RMSE and NEES consistency.

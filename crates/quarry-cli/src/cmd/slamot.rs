@@ -209,6 +209,18 @@ pub enum SlamotSub {
 
 /// Arguments of `quarry slamot sweep`.
 #[derive(Debug, Args)]
+#[command(
+    long_about = "Mean robot and target errors against the number of particles (the paper's \
+Figs. 3 and 4): --runs seeded runs per count, the same truth seeds for every count. Writes \
+sweep.csv, fig3.png and fig4.png into --out.
+
+Ctrl-C (or SIGTERM) ends the sweep after the run in progress: the counts whose runs all \
+completed are written and printed with \"interrupted\": true (a count cut short is left out, \
+not averaged over fewer runs) and the exit status is 130; a second Ctrl-C stops at once.
+
+EXAMPLE:
+  quarry slamot sweep --particles 20,50,100,200 --runs 20 --out out/"
+)]
 pub struct SweepArgs {
     /// The filter's configuration (as for `quarry slamot`; the particle counts are the
     /// sweep's).
@@ -734,6 +746,9 @@ struct SweepReport {
     mode: String,
     runs: u64,
     points: Vec<SweepPoint>,
+    /// Ctrl-C / SIGTERM stopped the sweep: `points` holds the particle counts whose runs all
+    /// completed (a count cut short is left out rather than averaged over fewer runs).
+    interrupted: bool,
 }
 
 fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
@@ -748,12 +763,17 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
     }
     let base = load_config(&args.cfg, implied_preset(args.scenario, false))?;
     let mode = mode_name(overrides(base.clone(), None, args.mode, false)?.association);
+    crate::interrupt::install();
     let pb = progress::bar(out, args.particles.len() as u64 * args.runs, "sweep");
     let mut points = Vec::new();
-    for &n in &args.particles {
+    'counts: for &n in &args.particles {
         let (cfg, scen) = sim_config(base.clone(), Some(n), args.mode, args.scenario, false)?;
         let mut runs = Vec::new();
         for i in 0..args.runs {
+            // Ctrl-C ends the sweep after the run in progress; this count is then incomplete
+            if crate::interrupt::requested() {
+                break 'counts;
+            }
             let r = args.seed + i;
             runs.push(summarise(
                 r,
@@ -839,8 +859,9 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
         mode,
         runs: args.runs,
         points,
+        interrupted: crate::interrupt::requested(),
     };
-    out.emit(&report, || {
+    let shown = out.emit(&report, || {
         let mut t = Table::new([
             "N",
             "robot err",
@@ -872,13 +893,23 @@ fn sweep(args: &SweepArgs, out: &Output) -> CmdResult {
             ]);
         }
         format!(
-            "slamot sweep: scenario {}, mode {}, {} runs per N\n{}",
+            "slamot sweep: scenario {}, mode {}, {} runs per N{}\n{}",
             report.scenario,
             report.mode,
             report.runs,
+            if report.interrupted {
+                " (interrupted: only the counts whose runs all completed)"
+            } else {
+                ""
+            },
             t.render()
         )
-    })
+    });
+    shown?;
+    if report.interrupted {
+        return Err(Box::new(crate::interrupt::Interrupted));
+    }
+    Ok(())
 }
 
 /// Error-vs-particles curves (one panel per series, 1 or 2x2, titled by `titles`), y from 0,
