@@ -29,14 +29,16 @@
 //! # Scores beyond the range of `f64`
 //!
 //! Each track's scores are divided by the largest of them before anything is multiplied. A
-//! score more than e^690 below its row's largest (a clutter density near `f64::MIN_POSITIVE`,
-//! or a likelihood from a near-singular covariance) would then be a subnormal number with a
-//! few bits of precision or 0, and the sweeps would return rows that no longer sum to 1. Such a
-//! score is raised to e^−690 times the largest ([`LN_RATIO_FLOOR`]). β is then correct to
-//! about 1e−300, unless every joint event of a cluster contains a raised score: the events are
-//! then weighed as if those scores were e^−690 (their common factor cancels; only differences
-//! between raised scores are lost). A score that is exactly 0 (outside the gate, P_D = 0) stays
-//! 0.
+//! joint event multiplies one score per track, so when a cluster's smallest nonzero scaled
+//! score `r` could make such a product leave the range of `f64` (`(n_tracks + 1) · ln r <
+//! −600`: a clutter density near `f64::MIN_POSITIVE`, a likelihood from a near-singular
+//! covariance, many tracks) the exact method runs its sweeps in the log domain (log-sum-exp at
+//! every node), so that β stays exact however far apart the scores are. Otherwise (the common
+//! case) it multiplies the scaled scores directly, with each level of the DAG rescaled. LBP
+//! and k-best always work on the scaled scores as `f64`: a score more than about e^708 below
+//! its row's largest counts as 0 there, so for such problems use [`Method::Exact`] or
+//! [`Method::Auto`]. In every method a score more than e^10000 below its row's largest counts
+//! as 0 ([`LN_NEGLIGIBLE`]).
 //!
 //! # Automatic choice ([`Method::Auto`])
 //!
@@ -192,16 +194,19 @@ pub(crate) fn clusters_where(
     out
 }
 
-/// The smallest ratio ln(score / the row's largest score) the sweeps use (see the module docs):
-/// e^−690 ≈ 2.5e−300 stays a normal `f64`, and 1 / it stays below LBP's message cap 1e300.
-pub const LN_RATIO_FLOOR: f64 = -690.0;
+/// A scaled score below e^[`LN_NEGLIGIBLE`] (relative to its row's largest) counts as 0.
+///
+/// Past that ratio a sum of up to 129 log scores is so large that `f64` cannot resolve the
+/// differences between joint events any more (log-likelihoods of 1e100 do that); treating the
+/// score as 0 changes β by less than e^−10000 unless every joint event of a cluster contains
+/// such a score, and then the cluster has c = 0 (β_i0 = 1, the convention for c = 0).
+pub const LN_NEGLIGIBLE: f64 = -1e4;
 
-/// `exp(x)` for a scaled log score `x ≤ 0`, raised to `e^LN_RATIO_FLOOR`; `-inf` stays 0.
-fn floored_exp(x: f64) -> f64 {
-    if x == f64::NEG_INFINITY {
-        0.0
+fn negligible_to_zero(x: f64) -> f64 {
+    if x < LN_NEGLIGIBLE {
+        f64::NEG_INFINITY
     } else {
-        x.max(LN_RATIO_FLOOR).exp()
+        x
     }
 }
 
@@ -241,6 +246,9 @@ pub(crate) fn marginals(sc: &Scores<'_>, solver: &Solver) -> Result<Marginals, C
         let mut s = vec![0.0; nt];
         let mut w0 = vec![0.0; nt];
         let mut w = vec![0.0; nt * nm];
+        // the same scaled scores as logs, for the exact method's log-domain sweeps
+        let mut lw0 = vec![0.0; nt];
+        let mut lw = vec![0.0; nt * nm];
         let mut dead = false;
         for (a, &i) in c.tracks.iter().enumerate() {
             let mut mx = sc.ln_miss[i];
@@ -252,9 +260,11 @@ pub(crate) fn marginals(sc: &Scores<'_>, solver: &Solver) -> Result<Marginals, C
                 break;
             }
             s[a] = mx;
-            w0[a] = floored_exp(sc.ln_miss[i] - mx);
+            lw0[a] = negligible_to_zero(sc.ln_miss[i] - mx);
+            w0[a] = lw0[a].exp();
             for (b, &j) in c.meas.iter().enumerate() {
-                w[a * nm + b] = floored_exp(ln_det(i, j) - mx);
+                lw[a * nm + b] = negligible_to_zero(ln_det(i, j) - mx);
+                w[a * nm + b] = lw[a * nm + b].exp();
             }
         }
         let local = if dead {
@@ -270,7 +280,17 @@ pub(crate) fn marginals(sc: &Scores<'_>, solver: &Solver) -> Result<Marginals, C
                 None
             }
         } else {
-            solve_cluster(&w0, &w, nt, nm, solver)?
+            solve_cluster(
+                Scaled {
+                    w0: &w0,
+                    w: &w,
+                    lw0: &lw0,
+                    lw: &lw,
+                },
+                nt,
+                nm,
+                solver,
+            )?
         };
         match local {
             Some((b, lc)) if lc.is_finite() => {
@@ -294,15 +314,25 @@ pub(crate) fn marginals(sc: &Scores<'_>, solver: &Solver) -> Result<Marginals, C
     Ok(Marginals { beta, ln_c })
 }
 
+/// One cluster's scores divided by each row's largest: as `f64` (`w0`: missed, `w`: `nt × nm`
+/// row-major detections) and as their logs (`lw0`, `lw`; `-inf` where the score is 0).
+#[derive(Clone, Copy)]
+struct Scaled<'a> {
+    w0: &'a [f64],
+    w: &'a [f64],
+    lw0: &'a [f64],
+    lw: &'a [f64],
+}
+
 /// Dispatches one cluster (`nt >= 2`) to a method. Returns local β (`nt × (nm+1)`, row-major)
 /// and ln c of the scaled scores, or `None` when c = 0.
 fn solve_cluster(
-    w0: &[f64],
-    w: &[f64],
+    sc: Scaled<'_>,
     nt: usize,
     nm: usize,
     solver: &Solver,
 ) -> Result<Option<(Vec<f64>, f64)>, CoreError> {
+    let (w0, w) = (sc.w0, sc.w);
     match solver.method {
         Method::Exact => {
             if nt > 128 {
@@ -311,7 +341,7 @@ fn solve_cluster(
                     format!("exact JPDA needs clusters of at most 128 tracks, got {nt}"),
                 ));
             }
-            exact(w0, w, nt, nm, solver.max_states).ok_or_else(|| {
+            exact(sc, nt, nm, solver.max_states).ok_or_else(|| {
                 CoreError::numerical(
                     "exact JPDA",
                     format!(
@@ -323,7 +353,7 @@ fn solve_cluster(
         }
         Method::Auto => {
             if nt <= 128
-                && let Some(r) = exact(w0, w, nt, nm, solver.max_states)
+                && let Some(r) = exact(sc, nt, nm, solver.max_states)
             {
                 return Ok(r);
             }
@@ -359,6 +389,7 @@ struct Edge {
     track: u32,
     /// Tracks whose missed factor this edge applies (dropped from the open set, unused).
     missed: u128,
+    /// The edge weight (its natural log in the log-domain mode of [`exact`]).
     w: f64,
 }
 
@@ -419,13 +450,32 @@ fn order_meas(w: &[f64], nt: usize, nm: usize) -> Vec<usize> {
     clippy::option_option
 )]
 fn exact(
-    w0: &[f64],
-    w: &[f64],
+    sc: Scaled<'_>,
     nt: usize,
     nm: usize,
     max_states: usize,
 ) -> Option<Option<(Vec<f64>, f64)>> {
     debug_assert!(nt <= 128);
+    let (w0, lw0, lw) = (sc.w0, sc.lw0, sc.lw);
+    // An event multiplies up to nt + 1 scaled scores: if that can leave the range of f64,
+    // the sweeps run on logs (module docs). The structure (which pairs are gated) comes from
+    // the logs in both modes: the f64 score of a gated pair may have underflowed to 0.
+    let ln_min = lw0
+        .iter()
+        .chain(lw)
+        .filter(|x| x.is_finite())
+        .fold(0.0_f64, |m, &x| m.min(x));
+    let log_mode = (nt as f64 + 1.0) * ln_min < -600.0;
+    let structural: Vec<f64>;
+    let w: &[f64] = if log_mode {
+        structural = lw
+            .iter()
+            .map(|&x| f64::from(u8::from(x > f64::NEG_INFINITY)))
+            .collect();
+        &structural
+    } else {
+        sc.w
+    };
     let order = order_meas(w, nt, nm);
     // alive[l] = tracks gated by a detection at position >= l in the order.
     let mut alive = vec![0u128; nm + 1];
@@ -464,11 +514,23 @@ fn exact(
             (1u128 << nt) - 1
         };
     let mut base = 1.0;
+    let mut ln_base = 0.0;
     for a in 0..nt {
         if never >> a & 1 == 1 {
             base *= w0[a];
+            ln_base += lw0[a];
         }
     }
+    // in the log mode an edge's `w` holds ln of its weight
+    let ln_miss_prod = |mut mask: u128| -> f64 {
+        let mut p = 0.0;
+        while mask != 0 {
+            let a = mask.trailing_zeros() as usize;
+            p += lw0[a];
+            mask &= mask - 1;
+        }
+        p
+    };
     let miss_prod = |mut mask: u128| -> f64 {
         let mut p = 1.0;
         while mask != 0 {
@@ -493,14 +555,18 @@ fn exact(
         let gated: Vec<(u32, f64)> = (0..nt)
             .filter_map(|a| {
                 let x = w[a * nm + b];
-                (x > 0.0).then_some((a as u32, x))
+                (x > 0.0).then_some((a as u32, if log_mode { lw[a * nm + b] } else { x }))
             })
             .collect();
         for (from, &key) in keys[l].iter().enumerate() {
             let mut push = |newmask: u128, track: u32, wt: f64, next_keys: &mut Vec<u128>| {
                 let missed = drop & !newmask;
-                let f = wt * miss_prod(missed);
-                if f <= 0.0 {
+                let f = if log_mode {
+                    wt + ln_miss_prod(missed)
+                } else {
+                    wt * miss_prod(missed)
+                };
+                if (!log_mode && f <= 0.0) || f == f64::NEG_INFINITY {
                     return;
                 }
                 let child = newmask & next_alive;
@@ -516,7 +582,12 @@ fn exact(
                     w: f,
                 });
             };
-            push(key, u32::MAX, 1.0, &mut next_keys);
+            push(
+                key,
+                u32::MAX,
+                if log_mode { 0.0 } else { 1.0 },
+                &mut next_keys,
+            );
             for &(a, x) in &gated {
                 if key >> a & 1 == 0 {
                     push(key | (1u128 << a), a, x, &mut next_keys);
@@ -532,6 +603,9 @@ fn exact(
         }
         keys.push(next_keys);
         edges.push(lev_edges);
+    }
+    if log_mode {
+        return Some(log_sweeps(&keys, &edges, &order, never, nt, nm, ln_base));
     }
     // Forward sweep with per-level normalisation.
     let mut fwd: Vec<Vec<f64>> = Vec::with_capacity(nm + 1);
@@ -611,6 +685,78 @@ fn exact(
         }
     }
     Some(Some((beta, ln_c)))
+}
+
+/// `ln(e^a + e^b)` without overflow (`-inf` is the empty sum).
+fn ln_add(a: f64, b: f64) -> f64 {
+    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+    if lo == f64::NEG_INFINITY {
+        hi
+    } else {
+        hi + (lo - hi).exp().ln_1p()
+    }
+}
+
+/// The forward and backward sweeps of [`exact`] on logs (edge `w` = ln of its weight): every
+/// node holds ln of its sum, so no product of scores leaves the range of `f64`. Returns
+/// `None` when c = 0.
+#[allow(clippy::needless_range_loop)]
+fn log_sweeps(
+    keys: &[Vec<u128>],
+    edges: &[Vec<Edge>],
+    order: &[usize],
+    never: u128,
+    nt: usize,
+    nm: usize,
+    ln_base: f64,
+) -> Option<(Vec<f64>, f64)> {
+    let ni = f64::NEG_INFINITY;
+    let mut fwd: Vec<Vec<f64>> = Vec::with_capacity(nm + 1);
+    fwd.push(vec![0.0]);
+    for l in 0..nm {
+        let mut nxt = vec![ni; keys[l + 1].len()];
+        for e in &edges[l] {
+            let t = e.to as usize;
+            nxt[t] = ln_add(nxt[t], fwd[l][e.from as usize] + e.w);
+        }
+        fwd.push(nxt);
+    }
+    let ln_c_dag = fwd[nm].iter().fold(ni, |acc, &x| ln_add(acc, x));
+    if !ln_c_dag.is_finite() || !ln_base.is_finite() {
+        return None;
+    }
+    let mut bwd: Vec<Vec<f64>> = vec![Vec::new(); nm + 1];
+    bwd[nm] = vec![0.0; keys[nm].len()];
+    for l in (0..nm).rev() {
+        let mut cur = vec![ni; keys[l].len()];
+        for e in &edges[l] {
+            let f = e.from as usize;
+            cur[f] = ln_add(cur[f], e.w + bwd[l + 1][e.to as usize]);
+        }
+        bwd[l] = cur;
+    }
+    let mut beta = vec![0.0; nt * (nm + 1)];
+    for l in 0..nm {
+        let b = order[l];
+        for e in &edges[l] {
+            let p = (fwd[l][e.from as usize] + e.w + bwd[l + 1][e.to as usize] - ln_c_dag).exp();
+            if e.track != u32::MAX {
+                beta[e.track as usize * (nm + 1) + b + 1] += p;
+            }
+            let mut mk = e.missed;
+            while mk != 0 {
+                let a = mk.trailing_zeros() as usize;
+                beta[a * (nm + 1)] += p;
+                mk &= mk - 1;
+            }
+        }
+    }
+    for a in 0..nt {
+        if never >> a & 1 == 1 {
+            beta[a * (nm + 1)] = 1.0;
+        }
+    }
+    Some((beta, ln_c_dag + ln_base))
 }
 
 /// Loopy belief propagation (Williams & Lau 2014) on one cluster.
