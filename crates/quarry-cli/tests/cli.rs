@@ -331,6 +331,57 @@ fn a_missing_scans_csv_is_named_as_such() {
 }
 
 #[test]
+fn lidar_detector_legs_runs_kf_gnn_and_refuses_the_table1_presets() {
+    let d = tmpdir("legs-flags");
+    let p = d.join("nowhere_scans.csv");
+    let scans = p.to_str().unwrap();
+    let (code, _, stderr) = quarry(&["lidar", "--scans", scans, "--detector", "feet"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("unknown detector \"feet\""), "{stderr}");
+    let (code, _, stderr) = quarry(&[
+        "lidar",
+        "--scans",
+        scans,
+        "--detector",
+        "legs",
+        "--preset",
+        "faithful",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("detector = legs needs preset = kf-gnn"),
+        "{stderr}"
+    );
+    let Some(sh) = shared() else { return };
+    let data = sh.join("data/leg-tracker");
+    if !data.join("scan_meta.json").exists() {
+        eprintln!("skipping the recorded run: no {}", data.display());
+        return;
+    }
+    let out = d.join("out");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "lidar",
+        "--scans",
+        data.join("positive_2_scans.csv").to_str().unwrap(),
+        "--legs",
+        data.join("positive_2_legs.csv").to_str().unwrap(),
+        "--detector",
+        "legs",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["preset"], "kf-gnn", "{v}");
+    assert_eq!(v["detector"], "legs", "{v}");
+    assert!(v["labelled"]["rmse_m"].as_f64().unwrap() < 0.1, "{v}");
+    for f in ["tracks.csv", "tracks_mot.txt", "metrics.json"] {
+        assert!(out.join(f).exists(), "{f} not written");
+    }
+}
+
+#[test]
 fn broken_and_oversized_images_are_refused() {
     let d = tmpdir("bad-images");
     let img =

@@ -13,6 +13,7 @@
 //! | [`cluster`] | [`cluster::MeanShift`] (flat / Gaussian, bin or all-point seeds, deterministic) |
 //! | [`icp`] | [`icp::rigid_2d`] (closed form) and [`icp::Icp2d`] (trimmed point-to-point ICP) |
 //! | [`contour`] | [`contour::EllipseModel`], the human contour model of §2.6 |
+//! | [`legs`] | [`legs::LegDetector`]: leg clusters at leg height, paired into people (single-leg fallback) |
 //! | [`calib`] | scanner extrinsics from static backgrounds, or from configured poses |
 //!
 //! Every public function that takes data returns `Result<_, CloudError>` (the quarry-core trait
@@ -54,6 +55,7 @@ pub mod contour;
 pub mod error;
 pub mod icp;
 pub mod kd;
+pub mod legs;
 pub mod scan;
 
 pub use error::CloudError;

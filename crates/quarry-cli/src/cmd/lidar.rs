@@ -135,6 +135,12 @@ pub struct LidarArgs {
     /// repeats the previous row's (a duplicated row) instead of stopping at the first one.
     #[arg(long)]
     pub skip_bad_rows: bool,
+    /// Detections: contour (MeanShift + torso-ellipse ICP, the paper's; default) or legs (leg
+    /// clusters paired into people, for one scanner at leg height; quarry_cloud::legs). legs
+    /// runs the kf-gnn tracker: without --preset it selects kf-gnn, with another preset it is
+    /// an error. Also the TOML key `detector`.
+    #[arg(long, value_name = "contour|legs")]
+    pub detector: Option<String>,
 }
 
 /// The JSON summary of a run.
@@ -273,9 +279,16 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
     let mut cfg: LidarPeopleConfig = args.cfg.load()?;
     if let Some(c) = &args.calibration {
         cfg.calibration = lidar_people::Calibration::parse(c)?;
-        // the flag changes a validated configuration: check its cross-field rules again
-        quarry_trackers::TrackerConfig::validate(&cfg)?;
     }
+    if let Some(d) = &args.detector {
+        cfg.detector = lidar_people::Detector::parse(d)?;
+        if cfg.detector == lidar_people::Detector::Legs && args.cfg.preset.is_none() {
+            // legs feed the kf-gnn tracker (kf-gnn = faithful + the tracker switch)
+            cfg.preset = Preset::KfGnn;
+        }
+    }
+    // the flags change a validated configuration: check its cross-field rules again
+    quarry_trackers::TrackerConfig::validate(&cfg)?;
     if let Some(scans) = &args.scans {
         if cfg.calibration == lidar_people::Calibration::Icp {
             return Err(
@@ -377,6 +390,8 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
 pub struct RecordedSummary {
     /// Preset.
     pub preset: String,
+    /// Detector: contour or legs.
+    pub detector: String,
     /// Input file.
     pub scans_file: String,
     /// Beams per scan.
@@ -471,6 +486,7 @@ fn run_recorded_cmd(
     let n = run.frames.len().max(1) as f64;
     let summary = RecordedSummary {
         preset: cfg.preset.name().into(),
+        detector: cfg.detector.name().into(),
         scans_file: scans.display().to_string(),
         n_beams: geometry.n_beams,
         frames: run.frames.len(),
@@ -509,9 +525,10 @@ fn run_recorded_cmd(
     output.emit(&summary, || {
         let mut t = String::new();
         let _ = writeln!(t,
-            "quarry lidar --scans {}: preset {}, {} beams, {} scans ({} warm-up scans not tracked)",
+            "quarry lidar --scans {}: preset {}, detector {}, {} beams, {} scans ({} warm-up scans not tracked)",
             summary.scans_file,
             summary.preset,
+            summary.detector,
             summary.n_beams,
             summary.frames,
             summary.warm_up_scans

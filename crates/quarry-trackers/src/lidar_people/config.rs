@@ -38,6 +38,39 @@ impl crate::PresetName for Preset {
     }
 }
 
+/// Where the `kf-gnn` tracker's detections come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Detector {
+    /// MeanShift clusters fitted with the torso ellipse by ICP (spec 003 §2.5–2.6; default).
+    #[default]
+    Contour,
+    /// Leg clusters paired into people (`quarry_cloud::legs`): one scanner at leg height.
+    Legs,
+}
+
+impl Detector {
+    /// Parses `contour` or `legs`.
+    pub fn parse(s: &str) -> Result<Self, TrackerError> {
+        match s {
+            "contour" => Ok(Self::Contour),
+            "legs" => Ok(Self::Legs),
+            _ => Err(TrackerError::config(
+                "lidar_people",
+                format!("unknown detector {s:?} (expected contour or legs)"),
+            )),
+        }
+    }
+
+    /// `contour` or `legs`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Contour => "contour",
+            Self::Legs => "legs",
+        }
+    }
+}
+
 /// Which time the server fuses scans by (spec 003 §5, option `fusion`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -206,6 +239,33 @@ pub struct LidarPeopleConfig {
     /// Report confirmed tracks coasting at most this many frames [Q: 2].
     pub kf_max_coast_report: u32,
 
+    // ----- leg detector (one scanner at leg height; quarry_cloud::legs) -----
+    /// The `kf-gnn` tracker's detections: `contour` (default) or `legs` (needs `preset =
+    /// kf-gnn`; the Table 1 trackers need contour fits).
+    pub detector: Detector,
+    /// Single-linkage distance of leg clusters, metres [leg_tracker `cluster_dist_euclid`: 0.13].
+    pub leg_cluster_dist: f64,
+    /// Minimum points of a leg cluster [leg_tracker `min_points_per_cluster`: 3].
+    pub leg_min_points: usize,
+    /// Largest extent of a leg cluster, metres [choice: 0.45, two legs side by side].
+    pub leg_max_width: f64,
+    /// Largest distance between a person's two legs, metres [leg_tracker
+    /// `max_leg_pairing_dist`: 0.8].
+    pub leg_pair_dist: f64,
+    /// An unpaired leg is a person at its centroid [choice: true].
+    pub leg_single: bool,
+    /// Measurement σ_r of a leg detection, metres, used instead of `kf_sigma_r` [choice: 0.10:
+    /// the midpoint of two legs moves about the hips by a few cm during a stride, and a single
+    /// leg is up to 0.3-0.4 m (half a stride) from it, which a 0.10 m σ keeps within the
+    /// χ²₂(0.99) gate of a predicted track; not fitted to any recording].
+    pub leg_sigma_r: f64,
+    /// With `detector = legs`, a track is reported only once it has moved this far from where
+    /// it was born, metres [leg_tracker `dist_travelled_together_to_initiate_leg_pair`: 0.5].
+    /// Static leg-like clutter the background model lets through (chair and table legs, beams
+    /// that flicker between a return and none) then never becomes a track; a person who stands
+    /// still from the start is reported once they walk. 0 turns it off.
+    pub leg_min_travel_m: f64,
+
     // ----- evaluation (§4) -----
     /// Evaluation match threshold d_match, metres [Q: 0.5].
     pub d_match: f64,
@@ -287,6 +347,14 @@ impl LidarPeopleConfig {
             kf_n: 4,
             kf_n_del: 5,
             kf_max_coast_report: 2,
+            detector: Detector::Contour,
+            leg_cluster_dist: 0.13,
+            leg_min_points: 3,
+            leg_max_width: 0.45,
+            leg_pair_dist: 0.8,
+            leg_single: true,
+            leg_sigma_r: 0.10,
+            leg_min_travel_m: 0.5,
             d_match: 0.5,
             calibration: Calibration::Given,
             calib_reference: 0,
@@ -358,6 +426,10 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             ("kf_sigma_r", self.kf_sigma_r),
             ("kf_gamma", self.kf_gamma),
             ("d_match", self.d_match),
+            ("leg_cluster_dist", self.leg_cluster_dist),
+            ("leg_max_width", self.leg_max_width),
+            ("leg_pair_dist", self.leg_pair_dist),
+            ("leg_sigma_r", self.leg_sigma_r),
         ];
         for (name, v) in pos {
             if !(v.is_finite() && v > 0.0) {
@@ -446,6 +518,33 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             return Err(TrackerError::config(
                 "lidar_people",
                 "calibration = icp needs the long-term background b_n (revealed_background = true; the literal preset keeps none)",
+            ));
+        }
+        if !(self.leg_min_travel_m.is_finite() && self.leg_min_travel_m >= 0.0) {
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!(
+                    "leg_min_travel_m must be finite and >= 0, got {}",
+                    self.leg_min_travel_m
+                ),
+            ));
+        }
+        if self.leg_min_points == 0 || self.leg_min_points > MAX_MIN_NUM_POINT {
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!(
+                    "leg_min_points must be in 1..={MAX_MIN_NUM_POINT}, got {}",
+                    self.leg_min_points
+                ),
+            ));
+        }
+        if self.detector == Detector::Legs && self.preset != Preset::KfGnn {
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!(
+                    "detector = legs needs preset = kf-gnn (the {} tracker needs contour fits)",
+                    crate::PresetName::name(self.preset)
+                ),
             ));
         }
         if self.kf_m == 0 || self.kf_m > self.kf_n || self.kf_n > 64 {

@@ -3,7 +3,9 @@
 //! The pipeline: per-scanner background subtraction (clients), fusion of the dynamic points of
 //! all scanners into 50 ms frames (server), MeanShift clustering, ICP fit of an elliptical torso
 //! contour, and either the paper's Table 1 tracker with gate (8) or a CV-Kalman/GNN baseline.
-//! Three presets ([`Preset`]) switch the details over one code path.
+//! Three presets ([`Preset`]) switch the details over one code path. For one scanner at leg
+//! height, `detector = legs` ([`Detector`]) feeds the KF-GNN tracker with leg pairs from
+//! `quarry_cloud::legs` instead of the torso-contour fits.
 //!
 //! The building blocks come from the other crates: `quarry_cloud` (background, MeanShift, ICP,
 //! ellipse model, calibration), `quarry_assoc` (gate (8), Hungarian, M-of-N), `quarry_filter`
@@ -51,7 +53,7 @@ pub use calibration::{
     calibrate_backgrounds, pose_error, reference_index,
 };
 pub use config::{
-    Calibration, FusionTime, LidarPeopleConfig, MAX_ICP_IT, MAX_K_M, MAX_MIN_NUM_POINT,
+    Calibration, Detector, FusionTime, LidarPeopleConfig, MAX_ICP_IT, MAX_K_M, MAX_MIN_NUM_POINT,
     MAX_SECONDS, MAX_WINDOW_M, Preset,
 };
 pub use pipeline::{ClientPipeline, DynamicScan, Fusion, RowSource, ServerPipeline};

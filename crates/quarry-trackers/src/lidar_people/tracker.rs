@@ -2,7 +2,7 @@
 //! of spec 003 §2.6–§2.9, the tracker of a preset ([`LidarPeopleTracker`]) and the building
 //! blocks a configuration makes (gate, MeanShift, ICP, background model).
 
-use super::config::{LidarPeopleConfig, Preset};
+use super::config::{Detector, LidarPeopleConfig, Preset};
 use crate::{TrackerConfig, TrackerError};
 use nalgebra::{DMatrix, Matrix4, Vector2, Vector4};
 use quarry_assoc::PositionVelocityGate;
@@ -12,6 +12,7 @@ use quarry_cloud::background::{ChiSquareBackground, ChiSquareConfig, LongTermCon
 use quarry_cloud::cluster::MeanShift;
 use quarry_cloud::contour::EllipseModel;
 use quarry_cloud::icp::{Correspondence, Icp2d, Trim};
+use quarry_cloud::legs::LegDetector;
 use quarry_core::ScanGeometry;
 use quarry_core::{
     Clusterer, Clustering, CoreError, Gate, Gaussian, MultiTargetTracker, Point2, Pose2,
@@ -517,6 +518,10 @@ struct KfTrack {
     rms: f64,
     support: usize,
     reported: bool,
+    /// Where the track was born (for `leg_min_travel_m`).
+    origin: Point2,
+    /// It has been at least `min_travel` from `origin` (always true when that is 0).
+    moved: bool,
 }
 
 /// The `kf-gnn` baseline (spec §2.9): the same detector, a CV Kalman filter per track, a χ²
@@ -527,6 +532,12 @@ struct KfTrack {
 pub struct KfGnnTracker<C, R> {
     /// The detector.
     pub detector: ContourDetector<C, R>,
+    /// With `detector = legs`: the leg detector, used instead of `detector` (its detections
+    /// have orientation 0 and ICP RMS 0).
+    pub legs: Option<LegDetector>,
+    /// A track is reported only once it has been this far from where it was born, metres
+    /// (`leg_min_travel_m` with `detector = legs`, else 0).
+    min_travel: f64,
     motion: ConstantVelocity2,
     meas: Position2,
     gamma: f64,
@@ -547,14 +558,36 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         cfg: &LidarPeopleConfig,
     ) -> Result<Self, TrackerError> {
         let motion = ConstantVelocity2::cwna(cfg.kf_q).map_err(CoreError::from)?;
-        let meas = Position2::isotropic(cfg.kf_sigma_r).map_err(CoreError::from)?;
+        let legs = (cfg.detector == Detector::Legs).then_some(LegDetector {
+            cluster_dist: cfg.leg_cluster_dist,
+            min_points: cfg.leg_min_points,
+            max_width: cfg.leg_max_width,
+            max_pair_dist: cfg.leg_pair_dist,
+            single_legs: cfg.leg_single,
+        });
+        if let Some(l) = &legs {
+            l.validate()?;
+        }
+        let sigma_r = if legs.is_some() {
+            cfg.leg_sigma_r
+        } else {
+            cfg.kf_sigma_r
+        };
+        let meas = Position2::isotropic(sigma_r).map_err(CoreError::from)?;
         let life = MOfN::new(cfg.kf_m, cfg.kf_n, cfg.kf_n_del)?;
+        let min_travel = if legs.is_some() {
+            cfg.leg_min_travel_m
+        } else {
+            0.0
+        };
         Ok(Self {
             detector,
+            legs,
+            min_travel,
             motion,
             meas,
             gamma: cfg.kf_gamma,
-            sigma_r: cfg.kf_sigma_r,
+            sigma_r,
             r_icp: cfg.r_icp,
             life,
             max_coast_report: cfg.kf_max_coast_report,
@@ -590,16 +623,25 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         let t = frame.t;
         let dt = self.t_last.map_or(0.0, |t0| t.secs_since(t0)).max(0.0);
         self.t_last = Some(t);
-        let cl = if pts.is_empty() {
-            Clustering::default()
+        let fits = if let Some(legs) = &self.legs {
+            legs.detect(pts)?
+                .into_iter()
+                .map(|p| ContourFit {
+                    pose: Pose2::new(p.position.x, p.position.y, 0.0),
+                    rms: 0.0,
+                    support: p.support,
+                })
+                .collect()
         } else {
-            self.detector.clusterer.cluster(pts)?
+            let cl = if pts.is_empty() {
+                Clustering::default()
+            } else {
+                self.detector.clusterer.cluster(pts)?
+            };
+            let mut remaining = vec![true; pts.len()];
+            self.detector.detect_new(pts, &cl, &mut remaining)
         };
-        let mut remaining = vec![true; pts.len()];
-        let dets = suppress_second_fits(
-            self.detector.detect_new(pts, &cl, &mut remaining),
-            self.r_icp,
-        );
+        let dets = suppress_second_fits(fits, self.r_icp);
         for tr in &mut self.tracks {
             if dt > 0.0 {
                 tr.kf.predict(&(), dt).map_err(CoreError::from)?;
@@ -682,13 +724,20 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
                 rms: d.rms,
                 support: d.support,
                 reported: false,
+                origin: c,
+                moved: self.min_travel <= 0.0,
             });
         }
         let mut rows = Vec::new();
         let mut reports = Vec::new();
         for tr in &mut self.tracks {
+            if !tr.moved {
+                let m = tr.kf.mean();
+                tr.moved = (Point2::new(m[0], m[1]) - tr.origin).norm() >= self.min_travel;
+            }
             if self.life.state(&tr.rec) != TrackState::Confirmed
                 || tr.misses > self.max_coast_report
+                || !tr.moved
             {
                 continue;
             }
