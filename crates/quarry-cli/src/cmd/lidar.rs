@@ -59,7 +59,12 @@ localisation error and MOTA/MOTP/IDF1/HOTA (0.5 m).
 Outputs (--out DIR): tracks.csv (frame,t_us,track_id,x,y,alpha,vx,vy,support,rms,born,\
 gate_replaced), tracks_mot.txt (MOTChallenge rows frame,id,-1,-1,-1,-1,1,x,y,0 with world x, y \
 in metres), gt_people.csv (simulation), metrics.json and plot.png (room, scanners, background, \
-GT in grey, tracks in colour).
+GT in grey, tracks in colour; with --scans: the last scan, the --legs labels in grey and every \
+track's trajectory).
+
+Recorded scans of one scanner at leg height: --scans F.csv --detector legs (leg clusters paired \
+into people, fed to the kf-gnn tracker), e.g. \
+quarry lidar --scans positive_1_scans.csv --legs positive_1_legs.csv --detector legs --out out/
 
 JSON (--json): success_rate, success_rate_detectable, loc_error_m, loc_rmse_m, mota, motp, \
 idf1, hota, idsw, frames, ms_per_frame, client_ms_per_scan, metrics (every measure), and with \
@@ -474,10 +479,12 @@ fn run_recorded_cmd(
         return Err(format!("{}: no scans", scans.display()).into());
     }
     let run = lidar_people::run_recorded(cfg, &geometry, Pose2::default(), &polar, 3.0)?;
+    let mut label_positions: Vec<Point2> = Vec::new();
     let labelled = match &args.legs {
         Some(p) => {
             let text = std::fs::read_to_string(p).map_err(at(p))?;
             let labels = parse_legs_csv(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+            label_positions = labels.iter().map(|l| l.pos).collect();
             Some(score_labelled(&run, &labels, cfg.d_match)?)
         }
         None => None,
@@ -518,6 +525,19 @@ fn run_recorded_cmd(
             .collect();
         write_tracks(&out.join("tracks.csv"), &rows)?;
         write_mot(&out.join("tracks_mot.txt"), &rows)?;
+        // the last scan's returns (background and people) as the backdrop of the trajectories
+        let table = quarry_cloud::scan::BeamTable::new(&geometry).map_err(|e| e.to_string())?;
+        let last = &polar[polar.len() - 1];
+        let backdrop: Vec<Point2> = (0..geometry.n_beams as usize)
+            .filter_map(|n| last.range_m(n).and_then(|r| table.point(n, r)))
+            .collect();
+        let label_pts: Vec<(f64, f64)> = label_positions.iter().map(|p| (p.x, p.y)).collect();
+        plot_recorded(
+            &out.join("plot.png"),
+            &backdrop,
+            &trajectories(&rows),
+            &label_pts,
+        )?;
         let js = serde_json::to_string_pretty(&summary)?;
         let mpath = out.join("metrics.json");
         std::fs::write(&mpath, js).map_err(at(&mpath))?;
@@ -813,6 +833,102 @@ pub fn plot_room(
                 )))
                 .map(|_| ()))?;
         }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
+    img.save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// The plot of a `--scans` run: the last scan's returns (blue dots), the labelled person
+/// positions when `--legs` is given (grey), every track's trajectory (one colour per id) and
+/// the scanner (red, at the origin, looking along +x); axes in metres, the extent that of the
+/// tracks and labels plus 1 m (at least 4 m × 4 m).
+fn plot_recorded(
+    path: &Path,
+    backdrop: &[Point2],
+    tracks: &[Vec<(f64, f64)>],
+    labels: &[(f64, f64)],
+) -> Result<(), CmdError> {
+    crate::fonts::register()?;
+    let (mut x0, mut x1, mut y0, mut y1) = (-2.0f64, 2.0f64, -2.0f64, 2.0f64);
+    for &(x, y) in tracks.iter().flatten().chain(labels) {
+        if x.is_finite() && y.is_finite() {
+            x0 = x0.min(x - 1.0);
+            x1 = x1.max(x + 1.0);
+            y0 = y0.min(y - 1.0);
+            y1 = y1.max(y + 1.0);
+        }
+    }
+    // equal scale on both axes
+    let (w, h) = (1000u32, 900u32);
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let half = 0.5 * (x1 - x0).max((y1 - y0) * f64::from(w) / f64::from(h));
+    let half_y = half * f64::from(h) / f64::from(w);
+    let (x0, x1, y0, y1) = (cx - half, cx + half, cy - half_y, cy + half_y);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(20)
+            .caption(
+                "scanner (red), last scan (blue dots), labels (grey), tracks (colours)",
+                ("sans-serif", 16),
+            )
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let e = |x: Result<(), DrawingAreaErrorKind<_>>| x.map_err(|e| e.to_string());
+        let inside = |x: f64, y: f64| x >= x0 && x <= x1 && y >= y0 && y <= y1;
+        e(chart
+            .draw_series(
+                backdrop
+                    .iter()
+                    .filter(|p| inside(p.x, p.y))
+                    .map(|p| Circle::new((p.x, p.y), 2, RGBColor(120, 120, 200).filled())),
+            )
+            .map(|_| ()))?;
+        e(chart
+            .draw_series(
+                labels
+                    .iter()
+                    .filter(|p| inside(p.0, p.1))
+                    .map(|p| Circle::new(*p, 3, RGBColor(190, 190, 190).filled())),
+            )
+            .map(|_| ()))?;
+        for (i, t) in tracks.iter().enumerate() {
+            let c = Palette99::pick(i).to_rgba();
+            e(chart
+                .draw_series(std::iter::once(PathElement::new(
+                    t.clone(),
+                    c.stroke_width(2),
+                )))
+                .map(|_| ()))?;
+            if let Some(&end) = t.last() {
+                e(chart
+                    .draw_series(std::iter::once(Circle::new(end, 3, c.filled())))
+                    .map(|_| ()))?;
+            }
+        }
+        e(chart
+            .draw_series(std::iter::once(Circle::new((0.0, 0.0), 7, RED.filled())))
+            .map(|_| ()))?;
+        e(chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(0.0, 0.0), (0.4, 0.0)],
+                RED.stroke_width(3),
+            )))
+            .map(|_| ()))?;
         root.present().map_err(|e| e.to_string())?;
     }
     let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
