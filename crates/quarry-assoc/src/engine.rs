@@ -668,23 +668,34 @@ fn exact(
             } else {
                 0.0
             };
-            if e.track != u32::MAX {
-                beta[e.track as usize * (nm + 1) + b + 1] += p;
-            }
-            let mut mk = e.missed;
-            while mk != 0 {
-                let a = mk.trailing_zeros() as usize;
-                beta[a * (nm + 1)] += p;
-                mk &= mk - 1;
-            }
+            add_edge_marginal(&mut beta, e, b, nm, p);
         }
     }
+    set_never_missed(&mut beta, never, nt, nm);
+    Some(Some((beta, ln_c)))
+}
+
+/// Adds an edge's probability `p` to the marginal of its assigned track (detection `b` of the
+/// order) and to the missed marginal of each track it drops.
+fn add_edge_marginal(beta: &mut [f64], e: &Edge, b: usize, nm: usize, p: f64) {
+    if e.track != u32::MAX {
+        beta[e.track as usize * (nm + 1) + b + 1] += p;
+    }
+    let mut mk = e.missed;
+    while mk != 0 {
+        let a = mk.trailing_zeros() as usize;
+        beta[a * (nm + 1)] += p;
+        mk &= mk - 1;
+    }
+}
+
+/// Tracks that never enter the DAG (no positive detection score) are missed for sure.
+fn set_never_missed(beta: &mut [f64], never: u128, nt: usize, nm: usize) {
     for a in 0..nt {
         if never >> a & 1 == 1 {
             beta[a * (nm + 1)] = 1.0;
         }
     }
-    Some(Some((beta, ln_c)))
 }
 
 /// `ln(e^a + e^b)` without overflow (`-inf` is the empty sum).
@@ -740,22 +751,10 @@ fn log_sweeps(
         let b = order[l];
         for e in &edges[l] {
             let p = (fwd[l][e.from as usize] + e.w + bwd[l + 1][e.to as usize] - ln_c_dag).exp();
-            if e.track != u32::MAX {
-                beta[e.track as usize * (nm + 1) + b + 1] += p;
-            }
-            let mut mk = e.missed;
-            while mk != 0 {
-                let a = mk.trailing_zeros() as usize;
-                beta[a * (nm + 1)] += p;
-                mk &= mk - 1;
-            }
+            add_edge_marginal(&mut beta, e, b, nm, p);
         }
     }
-    for a in 0..nt {
-        if never >> a & 1 == 1 {
-            beta[a * (nm + 1)] = 1.0;
-        }
-    }
+    set_never_missed(&mut beta, never, nt, nm);
     Some((beta, ln_c_dag + ln_base))
 }
 

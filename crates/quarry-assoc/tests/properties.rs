@@ -507,6 +507,23 @@ fn extreme_score_ratios_give_finite_marginals() {
     }
 }
 
+/// JPDA with (P_D, P_G, κ) and the given method.
+fn jpda_with(
+    method: Method,
+    (pd, pg, kappa): (f64, f64, f64),
+    lik: &LikelihoodMatrix,
+    pri: &[TrackPrior],
+) -> quarry_core::Association {
+    Jpda::new(pd, pg, kappa)
+        .unwrap()
+        .with_solver(Solver {
+            method,
+            ..Solver::default()
+        })
+        .associate(lik, pri)
+        .unwrap()
+}
+
 const ALL_METHODS: [Method; 4] = [
     Method::Auto,
     Method::Exact,
@@ -541,15 +558,7 @@ fn every_event_with_a_tiny_score_still_gives_rows_summing_to_one() {
     .unwrap();
     let pri = [TrackPrior::default(); 3];
     for method in ALL_METHODS {
-        let solver = Solver {
-            method,
-            ..Solver::default()
-        };
-        let a = Jpda::new(0.945, 0.486, 1.5745e-319)
-            .unwrap()
-            .with_solver(solver)
-            .associate(&lik, &pri)
-            .unwrap();
+        let a = jpda_with(method, (0.945, 0.486, 1.5745e-319), &lik, &pri);
         assert_rows_sum_to_one(&a.beta, &format!("{method:?}"));
     }
 }
@@ -573,15 +582,7 @@ fn products_of_many_tiny_scores_do_not_underflow() {
     let lik = LikelihoodMatrix::new(DMatrix::from_column_slice(8, 8, &cols)).unwrap();
     let pri = [TrackPrior::default(); 8];
     for method in ALL_METHODS {
-        let solver = Solver {
-            method,
-            ..Solver::default()
-        };
-        let a = Jpda::new(0.9333, 0.9333, 61.166)
-            .unwrap()
-            .with_solver(solver)
-            .associate(&lik, &pri)
-            .unwrap();
+        let a = jpda_with(method, (0.9333, 0.9333, 61.166), &lik, &pri);
         assert_rows_sum_to_one(&a.beta, &format!("{method:?}"));
     }
 }
