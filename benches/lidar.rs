@@ -14,6 +14,12 @@
 //!   scans of scanner A from t = 7 s to 17 s (K people walking) from a fresh warmed-up model;
 //!   divide by 400 for the time per scan.
 //!
+//! - `leg_scan/positive_1`: issue 17's budget, the leg detector + `kf-gnn` tracker
+//!   (`detector = legs`) per scan of the real 768-beam leg-height recording
+//!   `shared/data/leg-tracker/positive_1` (skipped with a printed reason when absent). One
+//!   iteration = the 380 tracked scans from a fresh tracker, on the dynamic points the
+//!   background model found (precomputed, untimed); divide by 380 for the time per scan.
+//!
 //! The state comes from a 7 s warm-up (untimed setup; the background has learned the room and
 //! the tracks exist).
 //!
@@ -25,12 +31,16 @@ use std::time::Duration;
 
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use quarry::cloud::background::ChiSquareBackground;
-use quarry::core::{Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry::cloud::scan::BeamTable;
+use quarry::core::{
+    BeamLabel, FrameIndex, MultiTargetTracker, Pose2, ScanGeometry, SensorId, Stamp, TimeUs,
+};
+use quarry::data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry::net::AssemblerFusion;
 use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
 use quarry::trackers::lidar_people::{
-    ClientPipeline, DefaultLidarTracker, DynamicScan, LidarPeopleConfig, ServerPipeline,
-    background_of,
+    ClientPipeline, DefaultLidarTracker, Detector, DynamicScan, FusedPoints, LidarPeopleConfig,
+    ServerPipeline, background_of,
 };
 
 type Server = ServerPipeline<AssemblerFusion, DefaultLidarTracker>;
@@ -237,5 +247,65 @@ fn bg_scan(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, frames, bg_scan);
+/// The dynamic points of every tracked scan of positive_1 (as `run_recorded` computes them).
+fn prepare_legs() -> Option<Vec<FusedPoints>> {
+    let d = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/leg-tracker");
+    let Ok(meta) = std::fs::read_to_string(d.join("scan_meta.json")) else {
+        eprintln!("leg_scan skipped: no {}", d.display());
+        return None;
+    };
+    let g = parse_scan_meta(&meta, "positive_1").unwrap();
+    let (scans, _) =
+        read_scans(d.join("positive_1_scans.csv"), g, ScanCsvOptions::default()).unwrap();
+    let cfg = LidarPeopleConfig::kf_gnn();
+    let mut bg = background_of(&cfg, &g).unwrap();
+    let table = BeamTable::new(&g).unwrap();
+    let mut frames = Vec::new();
+    for (k, scan) in scans.iter().enumerate() {
+        let labels = bg.classify_scan(scan).unwrap();
+        if k < cfg.window_m / 2 {
+            continue;
+        }
+        let points = labels
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| **l == BeamLabel::Dynamic)
+            .filter_map(|(n, _)| scan.range_m(n).and_then(|r| table.point(n, r)))
+            .collect();
+        frames.push(FusedPoints {
+            t: scan.t,
+            points,
+            no_data: false,
+        });
+    }
+    Some(frames)
+}
+
+fn leg_scan(c: &mut Criterion) {
+    let Some(frames) = prepare_legs() else { return };
+    assert_eq!(frames.len(), 380);
+    let mut cfg = LidarPeopleConfig::kf_gnn();
+    cfg.detector = Detector::Legs;
+    let mut g = c.benchmark_group("leg_scan");
+    g.sample_size(30).measurement_time(Duration::from_secs(5));
+    g.bench_function("positive_1", |b| {
+        b.iter_batched(
+            || DefaultLidarTracker::from_config(&cfg).unwrap(),
+            |mut tr| {
+                for (k, f) in frames.iter().enumerate() {
+                    let stamp = Stamp {
+                        frame: FrameIndex(k as u64),
+                        t: f.t,
+                    };
+                    black_box(tr.step(stamp, f).unwrap());
+                }
+                tr
+            },
+            BatchSize::PerIteration,
+        );
+    });
+    g.finish();
+}
+
+criterion_group!(benches, frames, bg_scan, leg_scan);
 criterion_main!(benches);
