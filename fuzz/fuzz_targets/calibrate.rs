@@ -58,8 +58,16 @@ fuzz_target!(|data: &[u8]| {
     };
     let _ = free_space_violations(&pts0, &p_other, &b1, &g, 0.15);
     let _ = background_points(&b0[..b0.len() / 2], &g, 28.5); // wrong length: an error
-    let reference = ScannerBackground { sensor: SensorId(0), points: pts0, pose: p_ref };
-    let other = ScannerBackground { sensor: SensorId(1), points: pts1, pose: p_other };
+    let reference = ScannerBackground {
+        sensor: SensorId(0),
+        points: pts0,
+        pose: p_ref,
+    };
+    let other = ScannerBackground {
+        sensor: SensorId(1),
+        points: pts1,
+        pose: p_other,
+    };
     if let Ok(res) = calibrate(&cfg, &reference, &[other]) {
         for r in res {
             assert!(r.pose.is_finite(), "{r:?}");

@@ -30,7 +30,11 @@ fuzz_target!(|data: &[u8]| {
             assert!(f.t >= t_prev);
             t_prev = f.t;
             assert_eq!(f.target_obs.len(), f.truth.target_obs_source.len());
-            assert!(f.landmark_obs.iter().all(|(_, z)| z[0] > 0.0 && z[1].is_finite()));
+            assert!(
+                f.landmark_obs
+                    .iter()
+                    .all(|(_, z)| z[0] > 0.0 && z[1].is_finite())
+            );
             assert!(f.target_obs.iter().all(|z| z[0] > 0.0 && z[1].is_finite()));
         }
         let _ = run.skips.to_string();

@@ -4,20 +4,36 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use quarry_core::{Pose2, ScanGeometry};
 use quarry_data::leg_labels::parse_legs_csv;
 use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, ScanCsvReader};
 use quarry_repro::lidar::score_labelled;
-use quarry_core::{Pose2, ScanGeometry};
 use quarry_trackers::lidar_people::{LidarPeopleConfig, run_recorded};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
     let labels = parse_legs_csv(&text).unwrap_or_default();
-    let g = ScanGeometry { n_beams: 8, angle_min: -1.0, angle_increment: 0.25, range_min: 0.02, range_max: 12.0, scan_period: 0.1 };
-    let opts = ScanCsvOptions { bad_rows: RowPolicy::Skip, backwards: RowPolicy::Skip, ..Default::default() };
-    let Ok(rdr) = ScanCsvReader::new(data, g, opts) else { return };
+    let g = ScanGeometry {
+        n_beams: 8,
+        angle_min: -1.0,
+        angle_increment: 0.25,
+        range_min: 0.02,
+        range_max: 12.0,
+        scan_period: 0.1,
+    };
+    let opts = ScanCsvOptions {
+        bad_rows: RowPolicy::Skip,
+        backwards: RowPolicy::Skip,
+        ..Default::default()
+    };
+    let Ok(rdr) = ScanCsvReader::new(data, g, opts) else {
+        return;
+    };
     let scans: Vec<_> = rdr.take(2_000).filter_map(Result::ok).collect();
-    let cfg = LidarPeopleConfig { t_warm_s: 0.5, ..LidarPeopleConfig::default() };
+    let cfg = LidarPeopleConfig {
+        t_warm_s: 0.5,
+        ..LidarPeopleConfig::default()
+    };
     if let Ok(run) = run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0) {
         assert!(run.frames.len() <= scans.len());
         let _ = score_labelled(&run, &labels, 0.5);

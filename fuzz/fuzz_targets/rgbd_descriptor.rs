@@ -42,7 +42,9 @@ fuzz_target!(|data: &[u8]| {
     let h = u32::from(b.u8() % 48);
     let short = b.u8() % 16 == 0;
     let n = (w * h) as usize;
-    let rgb: Vec<u8> = (0..3 * n - usize::from(short && n > 0)).map(|_| b.u8()).collect();
+    let rgb: Vec<u8> = (0..3 * n - usize::from(short && n > 0))
+        .map(|_| b.u8())
+        .collect();
     let Ok(depth) = Plane::from_vec(w, h, (0..n).map(|_| b.depth()).collect()) else {
         return;
     };
@@ -54,12 +56,22 @@ fuzz_target!(|data: &[u8]| {
         ..PatchModelConfig::default()
     };
     let roi = (b.u8() % 4 == 0).then(|| {
-        (u32::from(b.u8()), u32::from(b.u8()), u32::from(b.u8()), u32::from(b.u8()))
+        (
+            u32::from(b.u8()),
+            u32::from(b.u8()),
+            u32::from(b.u8()),
+            u32::from(b.u8()),
+        )
     });
     let Ok(f) = RgbdFeatures::new(w, h, &rgb, &depth, roi, &cfg) else {
         return;
     };
-    let mut bx = || BBox { cx: b.coord(), cy: b.coord(), w: b.coord(), h: b.coord() };
+    let mut bx = || BBox {
+        cx: b.coord(),
+        cy: b.coord(),
+        w: b.coord(),
+        h: b.coord(),
+    };
     let (init, tmpl, cand) = (bx(), bx(), bx());
     let Ok(mut m) = PatchMultiCueModel::new(cfg, &f, &init, &tmpl) else {
         return;
