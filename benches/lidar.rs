@@ -8,6 +8,8 @@
 //!   printed frame count for the time per fused frame.
 //! - `lidar_frame/server_replay/K`: the same frames, server only (fusion + MeanShift + ICP +
 //!   Table 1); the client messages are precomputed.
+//! - `lidar_frame/server_replay_jipda/20`: the same 20-person frames with the `jipda` preset
+//!   (MeanShift + ICP + CV Kalman/JIPDA; issue 17's budget of 2 ms per frame).
 //!
 //! - `bg_scan/K`: spec §8's `bg_scan`, the background subtraction of one 1081-beam scan
 //!   (`faithful`: m = 40, region constraint, long-term background). One iteration = the 400
@@ -19,6 +21,7 @@
 //!   `shared/data/leg-tracker/positive_1` (skipped with a printed reason when absent). One
 //!   iteration = the 380 tracked scans from a fresh tracker, on the dynamic points the
 //!   background model found (precomputed, untimed); divide by 380 for the time per scan.
+//!   `leg_scan/positive_1_jipda`: the same with the `jipda` tracker.
 //!
 //! The state comes from a 7 s warm-up (untimed setup; the background has learned the room and
 //! the tracks exist).
@@ -40,8 +43,9 @@ use quarry::net::AssemblerFusion;
 use quarry::sim::lidar_room::{ClockProfile, NetworkModel, RoomEvent, Runner, Scenario, SpeedBand};
 use quarry::trackers::lidar_people::{
     ClientPipeline, DefaultLidarTracker, Detector, DynamicScan, FusedPoints, LidarPeopleConfig,
-    ServerPipeline, background_of,
+    Preset, ServerPipeline, background_of,
 };
+use quarry::trackers::{PresetName, TrackerConfig};
 
 type Server = ServerPipeline<AssemblerFusion, DefaultLidarTracker>;
 
@@ -58,8 +62,7 @@ fn scenario(people: u32) -> Scenario {
 }
 
 /// Events after the warm-up, and a function making the warmed-up state.
-fn prepare(people: u32) -> (Vec<RoomEvent>, impl Fn() -> State) {
-    let cfg = LidarPeopleConfig::faithful();
+fn prepare(people: u32, cfg: LidarPeopleConfig) -> (Vec<RoomEvent>, impl Fn() -> State) {
     let sc = scenario(people);
     let sensors: Vec<(SensorId, Pose2, ScanGeometry)> = sc
         .scanners
@@ -128,8 +131,14 @@ fn step(st: &mut State, ev: &RoomEvent) -> bool {
 fn frames(c: &mut Criterion) {
     let mut g = c.benchmark_group("lidar_frame");
     g.sample_size(10).measurement_time(Duration::from_secs(20));
-    for people in [5u32, 20] {
-        let (events, fresh) = prepare(people);
+    // `faithful` at 5 and 20 people; the `jipda` preset's server at 20 (issue 17)
+    for (people, preset) in [
+        (5u32, Preset::Faithful),
+        (20, Preset::Faithful),
+        (20, Preset::Jipda),
+    ] {
+        let jipda = preset == Preset::Jipda;
+        let (events, fresh) = prepare(people, LidarPeopleConfig::preset(preset));
         let n_frames = events
             .iter()
             .filter(|e| matches!(e, RoomEvent::Frame(_)))
@@ -147,22 +156,25 @@ fn frames(c: &mut Criterion) {
             }
         }
         eprintln!(
-            "lidar_frame/{people} people: one iteration = {n_frames} fused frames, {:.2} tracks per frame",
-            n_tracks as f64 / n_frames.max(1) as f64
+            "lidar_frame/{people} people ({}): one iteration = {n_frames} fused frames, {:.2} tracks per frame",
+            n_tracks as f64 / n_frames.max(1) as f64,
+            preset.name()
         );
         // end to end: one iteration replays every frame from a fresh warmed-up state
-        g.bench_function(BenchmarkId::new("end_to_end_replay", people), |b| {
-            b.iter_batched(
-                &fresh,
-                |mut st| {
-                    for ev in &events {
-                        step(&mut st, ev);
-                    }
-                    st
-                },
-                BatchSize::PerIteration,
-            );
-        });
+        if !jipda {
+            g.bench_function(BenchmarkId::new("end_to_end_replay", people), |b| {
+                b.iter_batched(
+                    &fresh,
+                    |mut st| {
+                        for ev in &events {
+                            step(&mut st, ev);
+                        }
+                        st
+                    },
+                    BatchSize::PerIteration,
+                );
+            });
+        }
         // server only: precompute the client messages of the replay
         let mut st = fresh();
         let msgs: Vec<Result<Vec<(DynamicScan, TimeUs)>, TimeUs>> = events
@@ -177,7 +189,12 @@ fn frames(c: &mut Criterion) {
                 RoomEvent::Frame(g) => Err(g.t),
             })
             .collect();
-        g.bench_function(BenchmarkId::new("server_replay", people), |b| {
+        let name = if jipda {
+            "server_replay_jipda"
+        } else {
+            "server_replay"
+        };
+        g.bench_function(BenchmarkId::new(name, people), |b| {
             b.iter_batched(
                 &fresh,
                 |mut st| {
@@ -284,26 +301,33 @@ fn prepare_legs() -> Option<Vec<FusedPoints>> {
 fn leg_scan(c: &mut Criterion) {
     let Some(frames) = prepare_legs() else { return };
     assert_eq!(frames.len(), 380);
-    let mut cfg = LidarPeopleConfig::kf_gnn();
-    cfg.detector = Detector::Legs;
     let mut g = c.benchmark_group("leg_scan");
     g.sample_size(30).measurement_time(Duration::from_secs(5));
-    g.bench_function("positive_1", |b| {
-        b.iter_batched(
-            || DefaultLidarTracker::from_config(&cfg).unwrap(),
-            |mut tr| {
-                for (k, f) in frames.iter().enumerate() {
-                    let stamp = Stamp {
-                        frame: FrameIndex(k as u64),
-                        t: f.t,
-                    };
-                    black_box(tr.step(stamp, f).unwrap());
-                }
-                tr
-            },
-            BatchSize::PerIteration,
-        );
-    });
+    for (name, preset) in [
+        ("positive_1", Preset::KfGnn),
+        ("positive_1_jipda", Preset::Jipda),
+    ] {
+        let cfg = LidarPeopleConfig {
+            detector: Detector::Legs,
+            ..LidarPeopleConfig::preset(preset)
+        };
+        g.bench_function(name, |b| {
+            b.iter_batched(
+                || DefaultLidarTracker::from_config(&cfg).unwrap(),
+                |mut tr| {
+                    for (k, f) in frames.iter().enumerate() {
+                        let stamp = Stamp {
+                            frame: FrameIndex(k as u64),
+                            t: f.t,
+                        };
+                        black_box(tr.step(stamp, f).unwrap());
+                    }
+                    tr
+                },
+                BatchSize::PerIteration,
+            );
+        });
+    }
     g.finish();
 }
 

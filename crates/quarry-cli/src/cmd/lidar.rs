@@ -49,8 +49,8 @@ pub(crate) fn check_frames(frames: usize) -> Result<(), CmdError> {
     about = "People tracking with distributed 2-D laser scanners (paper 003)",
     long_about = "People tracking with three fixed 2-D laser scanners (paper 003): chi-square \
 background subtraction per scanner, fusion into 50 ms frames, MeanShift, ICP fit of an elliptical \
-torso contour, and the paper's Table 1 tracker (presets literal, faithful) or a KF-GNN baseline \
-(kf-gnn).
+torso contour, and the paper's Table 1 tracker (presets literal, faithful), a KF-GNN baseline \
+(kf-gnn) or JIPDA with track existence (jipda: soft association, coasting through occlusions).
 
 By default it runs the simulated 10 x 8 m room (three UTM-30LX at 1.2 m, --people walkers in \
 one --band) and scores the evaluated frames (from t = 7 s) with the paper's success rate, the \
@@ -63,7 +63,7 @@ GT in grey, tracks in colour; with --scans: the last scan, the --legs labels in 
 track's trajectory).
 
 Recorded scans of one scanner at leg height: --scans F.csv --detector legs (leg clusters paired \
-into people, fed to the kf-gnn tracker), e.g. \
+into people, fed to the kf-gnn or jipda tracker), e.g. \
 quarry lidar --scans positive_1_scans.csv --legs positive_1_legs.csv --detector legs --out out/
 
 JSON (--json): success_rate, success_rate_detectable, loc_error_m, loc_rmse_m, mota, motp, \
@@ -83,6 +83,7 @@ EXAMPLE:
   quarry lidar --band fast --frames 4800 --seed 1 --out run_fast
   quarry lidar --scenario door --frames 1640 --preset kf-gnn
   quarry lidar --preset kf-gnn --json
+  quarry lidar --band fast --frames 4800 --preset jipda
   quarry lidar --calibration icp --seed 3"
 )]
 pub struct LidarArgs {
@@ -105,7 +106,7 @@ pub struct LidarArgs {
     /// Seed (evaluation seeds are 1-5, tuning seeds 101-105).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// --preset (literal, faithful = default, kf-gnn) and --config FILE.toml over it.
+    /// --preset (literal, faithful = default, kf-gnn, jipda) and --config FILE.toml over it.
     #[command(flatten)]
     pub cfg: ConfigArgs<Preset>,
     /// Output directory (tracks.csv, tracks_mot.txt, gt_people.csv, plot.png, metrics.json).
@@ -142,8 +143,8 @@ pub struct LidarArgs {
     pub skip_bad_rows: bool,
     /// Detections: contour (MeanShift + torso-ellipse ICP, the paper's; default) or legs (leg
     /// clusters paired into people, for one scanner at leg height; quarry_cloud::legs). legs
-    /// runs the kf-gnn tracker: without --preset it selects kf-gnn, with another preset it is
-    /// an error. Also the TOML key `detector`.
+    /// runs the kf-gnn or jipda tracker: without --preset it selects kf-gnn, with literal or
+    /// faithful it is an error. Also the TOML key `detector`.
     #[arg(long, value_name = "contour|legs")]
     pub detector: Option<String>,
 }

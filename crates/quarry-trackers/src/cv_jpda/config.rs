@@ -111,6 +111,16 @@ pub struct JpdaTrackerConfig {
     pub m_of_n: (u32, u32, u32),
     /// Report tentative tracks too.
     pub report_tentative: bool,
+    /// A detection left unexplained starts no track when it lies within this distance (m) of
+    /// a track's updated position: it is taken as a second view of that target (a split
+    /// detection) rather than a new one. 0 (the default) switches the rule off.
+    pub birth_exclusion: f64,
+    /// Two tracks whose updated positions lie within this distance (m) are taken as one
+    /// target tracked twice: a tentative one goes before a confirmed one, then one that this
+    /// scan did not detect (a coasting track drifting onto another target) before a detected
+    /// one, else the younger (its identity is the newer) is deleted. 0 (the default) switches the rule off. Only for trackers that manage their
+    /// tracks ([`JpdaTracker::new`](super::JpdaTracker::new)).
+    pub merge_distance: f64,
     /// Association solver (exact / k-best / LBP choice).
     #[serde(with = "SolverDef")]
     pub solver: Solver,
@@ -134,6 +144,8 @@ impl Default for JpdaTrackerConfig {
             survival: 0.99,
             m_of_n: (3, 4, 5),
             report_tentative: false,
+            birth_exclusion: 0.0,
+            merge_distance: 0.0,
             solver: Solver::default(),
         }
     }
@@ -171,6 +183,18 @@ impl crate::TrackerConfig for JpdaTrackerConfig {
         }
         if !(self.birth_vel_sigma.is_finite() && self.birth_vel_sigma > 0.0) {
             return fail("birth_vel_sigma must be positive".into());
+        }
+        if !(self.birth_exclusion.is_finite() && self.birth_exclusion >= 0.0) {
+            return fail(format!(
+                "birth_exclusion = {} must be finite and >= 0 (metres; 0 = off)",
+                self.birth_exclusion
+            ));
+        }
+        if !(self.merge_distance.is_finite() && self.merge_distance >= 0.0) {
+            return fail(format!(
+                "merge_distance = {} must be finite and >= 0 (metres; 0 = off)",
+                self.merge_distance
+            ));
         }
         if !(0.0..=1.0).contains(&self.survival) {
             return fail("survival must be in [0, 1]".into());
@@ -234,6 +258,8 @@ mod tests {
             "[existence]\ndelete = 0.95",
             "survival = 2.0",
             "sigma_meas = 0.0",
+            "birth_exclusion = -1.0",
+            "merge_distance = nan",
         ] {
             assert!(matches!(
                 JpdaTrackerConfig::from_toml(bad, None),

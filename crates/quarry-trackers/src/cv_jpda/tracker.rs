@@ -14,6 +14,7 @@ use quarry_filter::{ConstantVelocity2, Position2, UpdateForm};
 use super::config::{AssocMode, JpdaTrackerConfig};
 use crate::{TrackerConfig, TrackerError};
 
+#[derive(Debug, Clone)]
 enum Life {
     Existence(quarry_assoc::lifecycle::ExistenceRecord),
     MOfN(quarry_assoc::lifecycle::MOfNRecord),
@@ -21,6 +22,7 @@ enum Life {
 }
 
 /// One track of the tracker.
+#[derive(Debug, Clone)]
 pub struct Track {
     /// Identity (never reused).
     pub id: TrackId,
@@ -28,6 +30,12 @@ pub struct Track {
     pub est: Gaussian<4>,
     /// Existence probability (JIPDA; 1 otherwise).
     pub existence: f64,
+    /// The last scan detected it (`β_i0 < 0.5`); false for a track born in that scan.
+    pub detected: bool,
+    /// The detection (index into the scan's input) with the largest `β_ij` in the last scan,
+    /// when that `β_ij` is larger than `β_i0`; for a newborn track, the detection it started
+    /// from.
+    pub best_detection: Option<usize>,
     life: Life,
     born_now: bool,
 }
@@ -44,6 +52,7 @@ impl Track {
 }
 
 /// The stand-alone JPDA / JIPDA tracker (see the module docs).
+#[derive(Debug, Clone)]
 pub struct JpdaTracker {
     cfg: JpdaTrackerConfig,
     motion: ConstantVelocity2,
@@ -92,6 +101,8 @@ impl JpdaTracker {
                 id: TrackId(s.next_id),
                 est: *g,
                 existence: 1.0,
+                detected: false,
+                best_detection: None,
                 life: Life::Fixed,
                 born_now: false,
             });
@@ -107,7 +118,34 @@ impl JpdaTracker {
         &self.tracks
     }
 
-    fn birth(&mut self, z: &[f64; 2]) {
+    /// Deletes the weaker of every pair of tracks closer than `d`: a confirmed track beats a
+    /// tentative one, then a track this scan detected beats one that coasted (a coasting
+    /// track that drifts onto another target must not take over its identity), then the
+    /// older (smaller id) wins. Strongest first, so a kept track is never deleted later.
+    fn merge_twins(&mut self, d: f64) {
+        let n = self.tracks.len();
+        let cfg = self.cfg;
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by_key(|&i| {
+            let t = &self.tracks[i];
+            (t.state(&cfg) != TrackState::Confirmed, !t.detected, t.id.0)
+        });
+        let d2 = d * d;
+        let pos = |t: &Track| Vector2::new(t.est.mean[0], t.est.mean[1]);
+        let mut keep = vec![false; n];
+        let mut kept: Vec<Vector2<f64>> = Vec::with_capacity(n);
+        for i in order {
+            let p = pos(&self.tracks[i]);
+            if kept.iter().all(|k| (k - p).norm_squared() > d2) {
+                keep[i] = true;
+                kept.push(p);
+            }
+        }
+        let mut k = keep.into_iter();
+        self.tracks.retain(|_| k.next().unwrap_or(true));
+    }
+
+    fn birth(&mut self, z: &[f64; 2], j: usize) {
         let sv = self.cfg.birth_vel_sigma * self.cfg.birth_vel_sigma;
         let r = self.cfg.sigma_meas * self.cfg.sigma_meas;
         let est = Gaussian::new_unchecked(
@@ -126,6 +164,8 @@ impl JpdaTracker {
             } else {
                 1.0
             },
+            detected: false,
+            best_detection: Some(j),
             life,
             born_now: true,
         });
@@ -261,6 +301,10 @@ impl MultiTargetTracker for JpdaTracker {
             if let Some(e) = &assoc.existence {
                 t.existence = e[i];
             }
+            t.detected = b0 < 0.5;
+            t.best_detection = (0..m)
+                .filter(|&j| assoc.beta[(i, j + 1)] > b0)
+                .max_by(|&a, &b| assoc.beta[(i, a + 1)].total_cmp(&assoc.beta[(i, b + 1)]));
             let obs = ScanObservation {
                 detected: b0 < 0.5,
                 existence: Some(t.existence),
@@ -279,11 +323,32 @@ impl MultiTargetTracker for JpdaTracker {
         if self.manage {
             let cfg = self.cfg;
             self.tracks.retain(|t| t.state(&cfg) != TrackState::Deleted);
+            if cfg.merge_distance > 0.0 {
+                self.merge_twins(cfg.merge_distance);
+            }
+            let r2 = cfg.birth_exclusion * cfg.birth_exclusion;
+            // Updated positions of the surviving tracks, then of this scan's newborns.
+            let mut near: Vec<Vector2<f64>> = if r2 > 0.0 {
+                self.tracks
+                    .iter()
+                    .map(|t| Vector2::new(t.est.mean[0], t.est.mean[1]))
+                    .collect()
+            } else {
+                Vec::new()
+            };
             for (j, z) in input.iter().enumerate() {
                 let explained: f64 = (0..n).map(|i| assoc.beta[(i, j + 1)]).sum();
-                if explained < 0.5 {
-                    self.birth(z);
+                if explained >= 0.5 {
+                    continue;
                 }
+                let zj = Vector2::new(z[0], z[1]);
+                if r2 > 0.0 {
+                    if near.iter().any(|p| (p - zj).norm_squared() <= r2) {
+                        continue;
+                    }
+                    near.push(zj);
+                }
+                self.birth(z, j);
             }
         }
         Ok(self.report(stamp))
@@ -351,5 +416,98 @@ mod tests {
             t.step(Stamp::from_frame(k, 1.0), &vec![]).unwrap();
         }
         assert!(t.tracks().is_empty());
+    }
+
+    #[test]
+    fn merge_distance_deletes_the_younger_twin_of_a_target() {
+        // Frames 0-9: two targets 1 m apart. From frame 10 a second view of target 0 appears
+        // 0.6 m from it (a twin is born and confirmed); from frame 20 it moves onto target 0
+        // and stays 0.05 m beside it.
+        let run = |merge_distance: f64| {
+            let cfg = JpdaTrackerConfig {
+                sigma_meas: 0.05,
+                merge_distance,
+                ..Default::default()
+            };
+            let mut t = JpdaTracker::new(cfg).unwrap();
+            let mut out = Vec::new();
+            for k in 0..40u64 {
+                let mut z = vec![[0.0, 0.0], [0.0, 1.0]];
+                if k >= 10 {
+                    let off = if k < 20 {
+                        0.6
+                    } else {
+                        0.6 - 0.06 * (k - 19) as f64
+                    };
+                    z.push([off.max(0.05), 0.0]);
+                }
+                out = t.step(Stamp::from_frame(k, 0.1), &z).unwrap();
+            }
+            let mut ids: Vec<u32> = out.iter().map(|r| r.id.0).collect();
+            ids.sort_unstable();
+            ids
+        };
+        assert_eq!(run(0.0).len(), 3, "without the rule the twin survives");
+        assert_eq!(run(0.25), vec![0, 1], "the first two tracks keep their ids");
+    }
+
+    #[test]
+    fn a_coasting_track_drifting_onto_a_detected_one_is_the_one_merged_away() {
+        // Target A walks along x at 1 m/s and is last seen at x = 0 (frame 10); its track
+        // coasts on towards target B, which stands at x = 1 and is seen every frame.
+        let cfg = JpdaTrackerConfig {
+            sigma_meas: 0.05,
+            pd: 0.5,
+            existence: quarry_assoc::lifecycle::ExistenceThresholds {
+                birth: 0.1,
+                confirm: 0.9,
+                delete: 0.001,
+            },
+            merge_distance: 0.25,
+            ..Default::default()
+        };
+        let mut t = JpdaTracker::new(cfg).unwrap();
+        let mut out = Vec::new();
+        for k in 0..25u64 {
+            let mut z = vec![[1.0, 0.0]];
+            if k <= 10 {
+                z.insert(0, [-1.0 + 0.1 * k as f64, 0.0]);
+            }
+            out = t.step(Stamp::from_frame(k, 0.1), &z).unwrap();
+        }
+        let ids: Vec<u32> = t.tracks().iter().map(|tr| tr.id.0).collect();
+        assert_eq!(
+            ids,
+            vec![1],
+            "B keeps its id; A's coasting track is deleted"
+        );
+        assert_eq!(out.len(), 1);
+    }
+
+    #[test]
+    fn birth_exclusion_keeps_a_split_detection_from_starting_a_twin() {
+        // Each scan sees one target twice, 0.3 m apart (a split detection).
+        let run = |birth_exclusion: f64| {
+            let cfg = JpdaTrackerConfig {
+                sigma_meas: 0.05,
+                birth_exclusion,
+                ..Default::default()
+            };
+            let mut t = JpdaTracker::new(cfg).unwrap();
+            let mut out = Vec::new();
+            for k in 0..15u64 {
+                let x = 0.1 * k as f64;
+                out = t
+                    .step(Stamp::from_frame(k, 0.1), &vec![[x, 0.0], [x, 0.3]])
+                    .unwrap();
+            }
+            (out.len(), t.tracks().to_vec())
+        };
+        let (without, _) = run(0.0);
+        assert_eq!(without, 2, "without the rule each view gets a track");
+        let (with, tracks) = run(0.5);
+        assert_eq!(with, 1, "the second view starts no track");
+        assert!(tracks[0].detected);
+        assert!(tracks[0].best_detection.is_some());
     }
 }

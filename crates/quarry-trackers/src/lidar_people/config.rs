@@ -15,10 +15,14 @@ pub enum Preset {
     Faithful,
     /// The same detector, then a CV Kalman filter, χ² gate, Hungarian GNN and M-of-N.
     KfGnn,
+    /// The same detector, then quarry-assoc's JIPDA over CV Kalman tracks (the `cv_jpda`
+    /// tracker): soft association, the PDA update, and birth, confirmation and death by the
+    /// probability that the track exists, so a track coasts through short occlusions.
+    Jipda,
 }
 
 impl crate::PresetName for Preset {
-    const ALL: &'static [Self] = &[Self::Faithful, Self::Literal, Self::KfGnn];
+    const ALL: &'static [Self] = &[Self::Faithful, Self::Literal, Self::KfGnn, Self::Jipda];
     const TRACKER: &'static str = "lidar_people";
 
     fn name(self) -> &'static str {
@@ -26,6 +30,7 @@ impl crate::PresetName for Preset {
             Self::Literal => "literal",
             Self::Faithful => "faithful",
             Self::KfGnn => "kf-gnn",
+            Self::Jipda => "jipda",
         }
     }
 
@@ -34,6 +39,9 @@ impl crate::PresetName for Preset {
             Self::Literal => "the paper's Table 1 read word for word (ablation)",
             Self::Faithful => "the paper's structure with the spec's gap fills (default)",
             Self::KfGnn => "the same detector, then CV Kalman + chi-square gate + GNN + M-of-N",
+            Self::Jipda => {
+                "the same detector, then CV Kalman + JIPDA with track existence (coasts through occlusions)"
+            }
         }
     }
 }
@@ -239,9 +247,61 @@ pub struct LidarPeopleConfig {
     /// Report confirmed tracks coasting at most this many frames [Q: 2].
     pub kf_max_coast_report: u32,
 
+    // ----- jipda (issue 17; measured and tuned on tuning seeds 101-105 only,
+    //        docs/lidar-people.md "jipda") -----
+    /// Detection probability P_D used by JIPDA [tuned: 0.5]. Not the detection rate (0.99
+    /// per person-frame for the contour detector on the tuning seeds): misses come in runs
+    /// (a person standing half hidden, another person in front), up to 20 frames there, and
+    /// JIPDA treats misses as independent. With 0.5 and `jipda_delete` a confirmed track
+    /// survives 20 frames (1 s) without a detection; with 0.99 one miss would nearly end it.
+    pub jipda_pd: f64,
+    /// Gate probability P_G (γ = χ²₂⁻¹(P_G)) [choice: 0.99, as `kf_gamma`].
+    pub jipda_prob_gate: f64,
+    /// Clutter density κ of false detections, per m² and frame [measured: 0.05]. The contour
+    /// detector's false detections on the tuning seeds are second fits of a body that survive
+    /// the R_icp suppression: 0.01-0.08 per frame, all 0.2-0.45 m from a person, about
+    /// 0.05 m⁻² over the ring around each person.
+    pub jipda_clutter: f64,
+    /// Probability that a person who exists stays one frame later, p_S [choice: 0.999 per
+    /// 50 ms frame: a mean stay of 50 s without evidence].
+    pub jipda_survival: f64,
+    /// Existence ψ₀ of a track started from an unexplained detection [choice: 0.1].
+    pub jipda_birth: f64,
+    /// A track is confirmed (reported) once ψ ≥ this [spec 000 A10: 0.9].
+    pub jipda_confirm: f64,
+    /// A track is deleted once ψ < this [choice: 0.001: with P_D 0.5, 20 frames without a
+    /// detection from ψ ≈ 1].
+    pub jipda_delete: f64,
+    /// Velocity σ of a newborn track, m/s [choice: 1.0, walking speed].
+    pub jipda_birth_vel_sigma: f64,
+    /// CWNA intensity q of the jipda tracks, m²/s³ [tuned: 4.0, grid 0.5-16]. The walkers'
+    /// measured mean intensity is 0.08 (mid band) to 0.38 (fast) m²/s³, but 80-86 % of it
+    /// comes as velocity jumps at waypoints; q = 4 with `jipda_sigma_r` keeps the person in
+    /// the gate through a jump.
+    pub jipda_q: f64,
+    /// Measurement σ_r of the contour detections for the jipda tracks, metres [tuned: 0.12,
+    /// grid 0.045-0.16]. The detections' noise is 0.045 m per axis (`kf_sigma_r`) with a
+    /// heavier tail (radial p99 0.2 m in the fast band, 0.076 m across the walking direction);
+    /// the larger value widens the gate to cover the tail and the lag after a turn. With
+    /// `detector = legs` the tracker uses `leg_sigma_r`.
+    pub jipda_sigma_r: f64,
+    /// An unexplained detection within this distance of a track starts no track, metres
+    /// [measured: 0.5]. Every second fit left after the suppression lay within 0.45 m of its
+    /// person on the tuning seeds; with R_icp = 0.37 such fits started confirmed twins.
+    pub jipda_birth_exclusion: f64,
+    /// Two jipda tracks closer than this are one person tracked twice: the tentative one, then
+    /// the one this frame did not detect, else the younger, is deleted, metres [choice: 0.25 = two torsos' minor semi-axes, the
+    /// closest two people's centres can be].
+    pub jipda_merge_distance: f64,
+    /// A jipda track that has not been detected for more than this many frames is not
+    /// reported (it still lives, and is reported again under its id once detected) [choice:
+    /// 2, as `kf_max_coast_report`; set after the leg recordings showed coasting ghosts
+    /// (docs/lidar-people.md "jipda"); neutral on the tuning seeds].
+    pub jipda_max_coast_report: u32,
+
     // ----- leg detector (one scanner at leg height; quarry_cloud::legs) -----
-    /// The `kf-gnn` tracker's detections: `contour` (default) or `legs` (needs `preset =
-    /// kf-gnn`; the Table 1 trackers need contour fits).
+    /// The detections of the `kf-gnn` and `jipda` trackers: `contour` (default) or `legs`
+    /// (the Table 1 trackers need contour fits).
     pub detector: Detector,
     /// Single-linkage distance of leg clusters, metres [leg_tracker `cluster_dist_euclid`: 0.13].
     pub leg_cluster_dist: f64,
@@ -347,6 +407,19 @@ impl LidarPeopleConfig {
             kf_n: 4,
             kf_n_del: 5,
             kf_max_coast_report: 2,
+            jipda_pd: 0.5,
+            jipda_prob_gate: 0.99,
+            jipda_clutter: 0.05,
+            jipda_survival: 0.999,
+            jipda_birth: 0.1,
+            jipda_confirm: 0.9,
+            jipda_delete: 0.001,
+            jipda_birth_vel_sigma: 1.0,
+            jipda_q: 4.0,
+            jipda_sigma_r: 0.12,
+            jipda_birth_exclusion: 0.5,
+            jipda_merge_distance: 0.25,
+            jipda_max_coast_report: 2,
             detector: Detector::Contour,
             leg_cluster_dist: 0.13,
             leg_min_points: 3,
@@ -387,6 +460,43 @@ impl LidarPeopleConfig {
             ..Self::faithful()
         }
     }
+
+    /// The `jipda` preset.
+    pub fn jipda() -> Self {
+        Self {
+            preset: Preset::Jipda,
+            ..Self::faithful()
+        }
+    }
+
+    /// The `cv_jpda` tracker configuration of the `jipda` preset: JIPDA with the `jipda_*`
+    /// values (σ_r is `leg_sigma_r` with `detector = legs`, else `jipda_sigma_r`).
+    pub fn jipda_tracker(&self) -> crate::cv_jpda::JpdaTrackerConfig {
+        use crate::cv_jpda::{AssocMode, JpdaTrackerConfig};
+        JpdaTrackerConfig {
+            pd: self.jipda_pd,
+            prob_gate: self.jipda_prob_gate,
+            clutter_density: self.jipda_clutter,
+            q: self.jipda_q,
+            sigma_meas: if self.detector == Detector::Legs {
+                self.leg_sigma_r
+            } else {
+                self.jipda_sigma_r
+            },
+            mode: AssocMode::Jipda,
+            birth_vel_sigma: self.jipda_birth_vel_sigma,
+            existence: quarry_assoc::lifecycle::ExistenceThresholds {
+                birth: self.jipda_birth,
+                confirm: self.jipda_confirm,
+                delete: self.jipda_delete,
+            },
+            survival: self.jipda_survival,
+            report_tentative: false,
+            birth_exclusion: self.jipda_birth_exclusion,
+            merge_distance: self.jipda_merge_distance,
+            ..JpdaTrackerConfig::default()
+        }
+    }
 }
 
 impl crate::TrackerConfig for LidarPeopleConfig {
@@ -398,6 +508,7 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             Preset::Literal => Self::literal(),
             Preset::Faithful => Self::faithful(),
             Preset::KfGnn => Self::kf_gnn(),
+            Preset::Jipda => Self::jipda(),
         }
     }
 
@@ -538,11 +649,12 @@ impl crate::TrackerConfig for LidarPeopleConfig {
                 ),
             ));
         }
-        if self.detector == Detector::Legs && self.preset != Preset::KfGnn {
+        if self.detector == Detector::Legs && !matches!(self.preset, Preset::KfGnn | Preset::Jipda)
+        {
             return Err(TrackerError::config(
                 "lidar_people",
                 format!(
-                    "detector = legs needs preset = kf-gnn (the {} tracker needs contour fits)",
+                    "detector = legs needs preset = kf-gnn or jipda (the {} tracker needs contour fits)",
                     crate::PresetName::name(self.preset)
                 ),
             ));
@@ -551,6 +663,13 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             return Err(TrackerError::config(
                 "lidar_people",
                 "kf-gnn needs 1 <= kf_m <= kf_n <= 64",
+            ));
+        }
+        // the jipda_* values: cv_jpda's own rules, with the keys named as in this file
+        if let Err(e) = crate::TrackerConfig::validate(&self.jipda_tracker()) {
+            return Err(TrackerError::config(
+                "lidar_people",
+                format!("jipda_* keys: {e}"),
             ));
         }
         Ok(())
@@ -576,7 +695,12 @@ mod tests {
                 .to_string();
             assert!(e.contains(name) && e.contains("at most"), "{toml}: {e}");
         }
-        for p in [Preset::Faithful, Preset::Literal, Preset::KfGnn] {
+        for p in [
+            Preset::Faithful,
+            Preset::Literal,
+            Preset::KfGnn,
+            Preset::Jipda,
+        ] {
             LidarPeopleConfig::preset(p).validate().unwrap();
         }
     }

@@ -2,10 +2,11 @@
 //!
 //! The pipeline: per-scanner background subtraction (clients), fusion of the dynamic points of
 //! all scanners into 50 ms frames (server), MeanShift clustering, ICP fit of an elliptical torso
-//! contour, and either the paper's Table 1 tracker with gate (8) or a CV-Kalman/GNN baseline.
-//! Three presets ([`Preset`]) switch the details over one code path. For one scanner at leg
-//! height, `detector = legs` ([`Detector`]) feeds the KF-GNN tracker with leg pairs from
-//! `quarry_cloud::legs` instead of the torso-contour fits.
+//! contour, then a tracker. Four presets ([`Preset`]) switch the details over one code path: the paper's rules
+//! (`literal`, `faithful`), a KF-GNN baseline (`kf-gnn`) and JIPDA with track existence
+//! (`jipda`, [`JipdaPeopleTracker`]). For one scanner at leg height, `detector = legs`
+//! ([`Detector`]) feeds the KF-GNN or JIPDA tracker with leg pairs from `quarry_cloud::legs`
+//! instead of the torso-contour fits.
 //!
 //! The building blocks come from the other crates: `quarry_cloud` (background, MeanShift, ICP,
 //! ellipse model, calibration), `quarry_assoc` (gate (8), Hungarian, M-of-N), `quarry_filter`
@@ -16,6 +17,7 @@
 //! |---|---|
 //! | `config.rs` | [`LidarPeopleConfig`] (every parameter of §3, with its source), [`Preset`] |
 //! | `tracker.rs` | the detector, the Table 1 and KF-GNN trackers, [`LidarPeopleTracker`] (the tracker of a preset) and the builders of its parts |
+//! | `jipda.rs` | [`JipdaPeopleTracker`]: the detector feeding `cv_jpda`'s JIPDA tracker |
 //! | `pipeline.rs` | the client and server halves: [`ClientPipeline`], the [`Fusion`] stage trait, [`ServerPipeline`] |
 //! | `calibration.rs` | `calibration = icp`: [`calibrate_backgrounds`], [`PendingCalibration`] |
 //! | `recorded.rs` | one recorded scanner: [`run_recorded`] |
@@ -44,6 +46,7 @@
 
 mod calibration;
 mod config;
+mod jipda;
 mod pipeline;
 mod recorded;
 mod tracker;
@@ -56,6 +59,7 @@ pub use config::{
     Calibration, Detector, FusionTime, LidarPeopleConfig, MAX_ICP_IT, MAX_K_M, MAX_MIN_NUM_POINT,
     MAX_SECONDS, MAX_WINDOW_M, Preset,
 };
+pub use jipda::JipdaPeopleTracker;
 pub use pipeline::{ClientPipeline, DynamicScan, Fusion, RowSource, ServerPipeline};
 pub use recorded::{RecordedFrame, RecordedRun, run_recorded};
 pub use tracker::{

@@ -237,7 +237,7 @@ fn heading(alpha: f64, v: Option<Vector2<f64>>) -> f64 {
     }
 }
 
-fn report(stamp: Stamp, row: &LidarTrack, vel_known: bool) -> TrackReport {
+pub(super) fn report(stamp: Stamp, row: &LidarTrack, vel_known: bool) -> TrackReport {
     let mut r = TrackReport::new(stamp, TrackId(row.id), TrackStatus::Confirmed);
     let v = vel_known.then(|| Vector2::new(row.vx, row.vy));
     let h = heading(row.alpha, v);
@@ -524,6 +524,53 @@ struct KfTrack {
     moved: bool,
 }
 
+/// The leg detector of `cfg` when `detector = legs` (validated), else `None`.
+pub(super) fn leg_detector_of(
+    cfg: &LidarPeopleConfig,
+) -> Result<Option<LegDetector>, TrackerError> {
+    if cfg.detector != Detector::Legs {
+        return Ok(None);
+    }
+    let l = LegDetector {
+        cluster_dist: cfg.leg_cluster_dist,
+        min_points: cfg.leg_min_points,
+        max_width: cfg.leg_max_width,
+        max_pair_dist: cfg.leg_pair_dist,
+        single_legs: cfg.leg_single,
+    };
+    l.validate()?;
+    Ok(Some(l))
+}
+
+/// The people of one fused frame, at least `r_icp` apart: leg pairs when `legs` is given
+/// (orientation 0, ICP RMS 0), else the contour fits of `detector`'s clusters.
+pub(super) fn detect_people<C: Clusterer, R: Registration2>(
+    detector: &ContourDetector<C, R>,
+    legs: Option<&LegDetector>,
+    pts: &[Point2],
+    r_icp: f64,
+) -> Result<Vec<ContourFit>, TrackerError> {
+    let fits = if let Some(legs) = legs {
+        legs.detect(pts)?
+            .into_iter()
+            .map(|p| ContourFit {
+                pose: Pose2::new(p.position.x, p.position.y, 0.0),
+                rms: 0.0,
+                support: p.support,
+            })
+            .collect()
+    } else {
+        let cl = if pts.is_empty() {
+            Clustering::default()
+        } else {
+            detector.clusterer.cluster(pts)?
+        };
+        let mut remaining = vec![true; pts.len()];
+        detector.detect_new(pts, &cl, &mut remaining)
+    };
+    Ok(suppress_second_fits(fits, r_icp))
+}
+
 /// The `kf-gnn` baseline (spec §2.9): the same detector, a CV Kalman filter per track, a χ²
 /// innovation gate, Hungarian GNN and M-of-N confirmation. An unassigned detection within
 /// `r_icp` of a track (or of a detection that started a track in the same frame) is a second
@@ -558,16 +605,7 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         cfg: &LidarPeopleConfig,
     ) -> Result<Self, TrackerError> {
         let motion = ConstantVelocity2::cwna(cfg.kf_q).map_err(CoreError::from)?;
-        let legs = (cfg.detector == Detector::Legs).then_some(LegDetector {
-            cluster_dist: cfg.leg_cluster_dist,
-            min_points: cfg.leg_min_points,
-            max_width: cfg.leg_max_width,
-            max_pair_dist: cfg.leg_pair_dist,
-            single_legs: cfg.leg_single,
-        });
-        if let Some(l) = &legs {
-            l.validate()?;
-        }
+        let legs = leg_detector_of(cfg)?;
         let sigma_r = if legs.is_some() {
             cfg.leg_sigma_r
         } else {
@@ -623,25 +661,7 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         let t = frame.t;
         let dt = self.t_last.map_or(0.0, |t0| t.secs_since(t0)).max(0.0);
         self.t_last = Some(t);
-        let fits = if let Some(legs) = &self.legs {
-            legs.detect(pts)?
-                .into_iter()
-                .map(|p| ContourFit {
-                    pose: Pose2::new(p.position.x, p.position.y, 0.0),
-                    rms: 0.0,
-                    support: p.support,
-                })
-                .collect()
-        } else {
-            let cl = if pts.is_empty() {
-                Clustering::default()
-            } else {
-                self.detector.clusterer.cluster(pts)?
-            };
-            let mut remaining = vec![true; pts.len()];
-            self.detector.detect_new(pts, &cl, &mut remaining)
-        };
-        let dets = suppress_second_fits(fits, self.r_icp);
+        let dets = detect_people(&self.detector, self.legs.as_ref(), pts, self.r_icp)?;
         for tr in &mut self.tracks {
             if dt > 0.0 {
                 tr.kf.predict(&(), dt).map_err(CoreError::from)?;
@@ -800,14 +820,16 @@ pub fn gate_of(cfg: &LidarPeopleConfig) -> PositionVelocityGate {
     }
 }
 
-/// The tracker of a preset: Table 1 (`literal`, `faithful`) or KF-GNN (`kf-gnn`), over the same
-/// detector.
+/// The tracker of a preset: Table 1 (`literal`, `faithful`), KF-GNN (`kf-gnn`) or JIPDA
+/// (`jipda`), over the same detector.
 #[derive(Debug, Clone)]
 pub enum LidarPeopleTracker<C, R> {
     /// `literal` / `faithful`.
     Table1(Table1Tracker<C, R, PositionVelocityGate>),
     /// `kf-gnn`.
     KfGnn(KfGnnTracker<C, R>),
+    /// `jipda` (boxed: its JIPDA state is several times the size of the other variants).
+    Jipda(Box<super::jipda::JipdaPeopleTracker<C, R>>),
 }
 
 impl<C: Clusterer, R: Registration2> LidarPeopleTracker<C, R> {
@@ -837,6 +859,9 @@ impl<C: Clusterer, R: Registration2> LidarPeopleTracker<C, R> {
         };
         Ok(match cfg.preset {
             Preset::KfGnn => Self::KfGnn(KfGnnTracker::new(det, cfg)?),
+            Preset::Jipda => {
+                Self::Jipda(Box::new(super::jipda::JipdaPeopleTracker::new(det, cfg)?))
+            }
             Preset::Literal | Preset::Faithful => {
                 Self::Table1(Table1Tracker::new(det, gate_of(cfg), cfg))
             }
@@ -848,6 +873,7 @@ impl<C: Clusterer, R: Registration2> LidarPeopleTracker<C, R> {
         match self {
             Self::Table1(t) => t.last_rows(),
             Self::KfGnn(t) => t.last_rows(),
+            Self::Jipda(t) => t.last_rows(),
         }
     }
 }
@@ -863,6 +889,7 @@ impl<C: Clusterer, R: Registration2> MultiTargetTracker for LidarPeopleTracker<C
         match self {
             Self::Table1(t) => t.process(stamp, input),
             Self::KfGnn(t) => t.process(stamp, input),
+            Self::Jipda(t) => t.process(stamp, input),
         }
     }
 }

@@ -1,0 +1,357 @@
+//! [`JipdaPeopleTracker`], the tracker of the `jipda` preset: the people detector of the other
+//! presets (contour fits, or leg pairs with `detector = legs`) feeding the stand-alone
+//! [`JpdaTracker`](crate::cv_jpda::JpdaTracker) of `cv_jpda` in JIPDA mode.
+//!
+//! What it adds around that tracker: the detector, the orientation / residual / support of the
+//! detection a track took (for the `tracks.csv` columns), `leg_min_travel_m` (a leg track is
+//! reported only once it has walked), and stamps that never go backwards (a frame stamped
+//! before the previous one is taken as simultaneous with it, as `kf-gnn` does).
+
+use std::collections::BTreeMap;
+
+use nalgebra::DMatrix;
+use quarry_assoc::lifecycle::TrackState;
+use quarry_cloud::legs::LegDetector;
+use quarry_core::{
+    Clusterer, CoreError, MultiTargetTracker, Point2, Registration2, Stamp, TimeUs, TrackReport,
+    TrackStatus,
+};
+
+use super::config::LidarPeopleConfig;
+use super::tracker::{
+    ContourDetector, FusedPoints, LidarTrack, detect_people, leg_detector_of, report,
+};
+use crate::TrackerError;
+use crate::cv_jpda::{JpdaTracker, JpdaTrackerConfig};
+
+/// What the tracker keeps per track beside the JIPDA state.
+#[derive(Debug, Clone, Copy)]
+struct Extra {
+    origin: Point2,
+    moved: bool,
+    reported: bool,
+    /// Consecutive frames without a detection.
+    misses: u32,
+    alpha: f64,
+    rms: f64,
+    support: usize,
+}
+
+/// The `jipda` preset (issue 17): people detections, then a CV Kalman filter per track with
+/// JIPDA association and existence-based birth, confirmation and death.
+///
+/// - Association is soft: every detection in a track's gate moves it by its JIPDA weight
+///   `β_ij` (the PDA update), and a frame where the person is not seen leaves the track
+///   coasting on its velocity with a growing covariance, hence a growing gate.
+/// - A track is born, tentative, at existence `jipda_birth` from a detection the tracks do not
+///   explain (`Σ_i β_ij < 0.5`) and farther than `r_icp` from every track (a second fit of a
+///   tracked body starts no twin); it is reported once its existence reaches `jipda_confirm`
+///   and deleted when it falls below `jipda_delete`.
+/// - A coasting track is reported with [`TrackStatus::Coasting`] and support 0 for at most
+///   `jipda_max_coast_report` frames (it lives on, unreported, until its existence says it
+///   is gone, and is reported again under its id once detected); every report
+///   carries its existence and the 5 × 5 covariance of `[x, y, vx, vy, heading]` (heading
+///   variance 1, as `kf-gnn`).
+#[derive(Debug, Clone)]
+pub struct JipdaPeopleTracker<C, R> {
+    /// The contour detector (used when `legs` is `None`).
+    pub detector: ContourDetector<C, R>,
+    /// With `detector = legs`: the leg detector, used instead of `detector`.
+    pub legs: Option<LegDetector>,
+    inner: JpdaTracker,
+    inner_cfg: JpdaTrackerConfig,
+    r_icp: f64,
+    min_travel: f64,
+    max_coast_report: u32,
+    extra: BTreeMap<u32, Extra>,
+    t_last: Option<TimeUs>,
+    last: Vec<LidarTrack>,
+}
+
+impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
+    /// A tracker with the `jipda_*` parameters of `cfg` ([`LidarPeopleConfig::jipda_tracker`]).
+    pub fn new(
+        detector: ContourDetector<C, R>,
+        cfg: &LidarPeopleConfig,
+    ) -> Result<Self, TrackerError> {
+        let legs = leg_detector_of(cfg)?;
+        let inner_cfg = cfg.jipda_tracker();
+        let inner = JpdaTracker::new(inner_cfg)?;
+        let min_travel = if legs.is_some() {
+            cfg.leg_min_travel_m
+        } else {
+            0.0
+        };
+        Ok(Self {
+            detector,
+            legs,
+            inner,
+            inner_cfg,
+            r_icp: cfg.r_icp,
+            min_travel,
+            max_coast_report: cfg.jipda_max_coast_report,
+            extra: BTreeMap::new(),
+            t_last: None,
+            last: Vec::new(),
+        })
+    }
+
+    /// The rows of the last processed frame.
+    pub fn last_rows(&self) -> &[LidarTrack] {
+        &self.last
+    }
+
+    /// The JIPDA tracker inside (its tracks, tentative ones included).
+    pub fn inner(&self) -> &JpdaTracker {
+        &self.inner
+    }
+
+    /// Processes one fused frame.
+    pub fn process(
+        &mut self,
+        stamp: Stamp,
+        frame: &FusedPoints,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        if frame.no_data {
+            self.last.clear();
+            return Ok(Vec::new());
+        }
+        let pts = &frame.points;
+        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
+            return Err(CoreError::NonFinite {
+                what: "fused frame points",
+            }
+            .into());
+        }
+        let t = match self.t_last {
+            Some(t0) if frame.t < t0 => t0,
+            _ => frame.t,
+        };
+        self.t_last = Some(t);
+        let dets = detect_people(&self.detector, self.legs.as_ref(), pts, self.r_icp)?;
+        let z: Vec<[f64; 2]> = dets.iter().map(|d| [d.pose.x, d.pose.y]).collect();
+        self.inner.step(Stamp { t, ..stamp }, &z)?;
+
+        let mut rows = Vec::new();
+        let mut reports = Vec::new();
+        let min_travel = self.min_travel;
+        for tr in self.inner.tracks() {
+            let id = tr.id.0;
+            let pos = Point2::new(tr.est.mean[0], tr.est.mean[1]);
+            let ex = self.extra.entry(id).or_insert(Extra {
+                origin: pos,
+                moved: min_travel <= 0.0,
+                reported: false,
+                misses: 0,
+                alpha: 0.0,
+                rms: f64::INFINITY,
+                support: 0,
+            });
+            if let Some(d) = tr.best_detection.and_then(|j| dets.get(j)) {
+                ex.alpha = d.pose.theta;
+                ex.rms = d.rms;
+                ex.support = d.support;
+            }
+            if !ex.moved {
+                ex.moved = (pos - ex.origin).norm() >= min_travel;
+            }
+            ex.misses = if tr.detected { 0 } else { ex.misses + 1 };
+            if tr.state(&self.inner_cfg) != TrackState::Confirmed
+                || !ex.moved
+                || ex.misses > self.max_coast_report
+            {
+                continue;
+            }
+            let coasting = !tr.detected;
+            let row = LidarTrack {
+                id,
+                x: tr.est.mean[0],
+                y: tr.est.mean[1],
+                alpha: ex.alpha,
+                vx: tr.est.mean[2],
+                vy: tr.est.mean[3],
+                support: if coasting { 0 } else { ex.support },
+                rms: ex.rms,
+                born: !ex.reported,
+                gate_replaced: false,
+            };
+            ex.reported = true;
+            let mut r = report(stamp, &row, true);
+            if coasting {
+                r.status = TrackStatus::Coasting;
+            }
+            r.existence = Some(tr.existence);
+            if let Some(st) = r.state.as_mut() {
+                let mut cov = DMatrix::zeros(5, 5);
+                cov.view_mut((0, 0), (4, 4)).copy_from(&tr.est.cov);
+                cov[(4, 4)] = 1.0;
+                st.cov = Some(cov);
+            }
+            reports.push(r);
+            rows.push(row);
+        }
+        let live: Vec<u32> = self.inner.tracks().iter().map(|t| t.id.0).collect();
+        self.extra.retain(|id, _| live.contains(id));
+        self.last = rows;
+        Ok(reports)
+    }
+}
+
+impl<C: Clusterer, R: Registration2> MultiTargetTracker for JipdaPeopleTracker<C, R> {
+    type Input = FusedPoints;
+    type Error = TrackerError;
+    fn step(
+        &mut self,
+        stamp: Stamp,
+        input: &FusedPoints,
+    ) -> Result<Vec<TrackReport>, TrackerError> {
+        self.process(stamp, input)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::config::{Detector, Preset};
+    use super::super::tracker::{DefaultLidarTracker, LidarPeopleTracker};
+    use super::*;
+    use crate::TrackerConfig;
+
+    /// The near half of a torso ellipse centred at (cx, cy), 40 points.
+    fn torso(cx: f64, cy: f64) -> Vec<Point2> {
+        (0..40)
+            .map(|i| {
+                let a = std::f64::consts::PI * (1.0 + f64::from(i) / 40.0);
+                Point2::new(cx + 0.22 * a.cos(), cy + 0.13 * a.sin())
+            })
+            .collect()
+    }
+
+    fn frame(k: u64, points: Vec<Point2>) -> FusedPoints {
+        FusedPoints {
+            t: TimeUs(50_000 * k as i64),
+            points,
+            no_data: false,
+        }
+    }
+
+    #[test]
+    fn one_walker_keeps_one_id_through_a_half_second_occlusion() {
+        let cfg = LidarPeopleConfig::preset(Preset::Jipda);
+        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+        let mut ids = std::collections::BTreeSet::new();
+        let mut coasted = 0;
+        let mut hidden = 0;
+        let mut last_x = 0.0;
+        for k in 0..80u64 {
+            // 1.2 m/s along x; hidden for frames 40-49 (0.5 s)
+            let x = 1.0 + 0.06 * k as f64;
+            let pts = if (40..50).contains(&k) {
+                Vec::new()
+            } else {
+                torso(x, 3.0)
+            };
+            let reps = tr.step(Stamp::from_frame(k, 0.05), &frame(k, pts)).unwrap();
+            assert!(reps.len() <= 1, "frame {k}: {} tracks", reps.len());
+            if k > 20 && reps.is_empty() {
+                hidden += 1;
+            }
+            for r in &reps {
+                ids.insert(r.id);
+                assert!(r.existence.is_some_and(|e| (0.0..=1.0).contains(&e)));
+                if r.status == TrackStatus::Coasting {
+                    coasted += 1;
+                }
+                last_x = tr.last_rows()[0].x;
+            }
+        }
+        assert_eq!(ids.len(), 1, "one id for one walker: {ids:?}");
+        // the first two frames of the occlusion are reported as coasting (jipda_max_coast_report),
+        // the other eight not; the track lives on and comes back under its id
+        assert_eq!(coasted, 2, "coasting reports");
+        assert_eq!(hidden, 8, "unreported frames");
+        let x_end = 1.0 + 0.06 * 79.0;
+        assert!(
+            (last_x - x_end).abs() < 0.1,
+            "ends at {last_x}, truth {x_end}"
+        );
+    }
+
+    #[test]
+    fn a_track_that_stays_unseen_is_deleted() {
+        let cfg = LidarPeopleConfig::preset(Preset::Jipda);
+        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+        for k in 0..20u64 {
+            tr.step(Stamp::from_frame(k, 0.05), &frame(k, torso(2.0, 3.0)))
+                .unwrap();
+        }
+        assert_eq!(tr.last_rows().len(), 1);
+        for k in 20..60u64 {
+            tr.step(Stamp::from_frame(k, 0.05), &frame(k, Vec::new()))
+                .unwrap();
+        }
+        assert!(tr.last_rows().is_empty());
+        let LidarPeopleTracker::Jipda(j) = &tr else {
+            panic!("the jipda preset builds the jipda tracker");
+        };
+        assert!(j.inner().tracks().is_empty(), "deleted, not only hidden");
+    }
+
+    #[test]
+    fn two_people_apart_get_two_ids_and_nan_is_an_error() {
+        let cfg = LidarPeopleConfig::preset(Preset::Jipda);
+        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+        let mut n = 0;
+        for k in 0..20u64 {
+            let mut pts = torso(2.0 + 0.05 * k as f64, 3.0);
+            pts.extend(torso(2.0 + 0.05 * k as f64, 5.0));
+            n = tr
+                .step(Stamp::from_frame(k, 0.05), &frame(k, pts))
+                .unwrap()
+                .len();
+        }
+        assert_eq!(n, 2);
+        let bad = frame(20, vec![Point2::new(f64::NAN, 1.0)]);
+        assert!(tr.step(Stamp::from_frame(20, 0.05), &bad).is_err());
+        // a frame stamped before the last one is taken as simultaneous, not an error
+        let early = frame(3, torso(3.0, 3.0));
+        assert!(tr.step(Stamp::from_frame(21, 0.05), &early).is_ok());
+    }
+
+    #[test]
+    fn with_legs_a_standing_pair_is_not_reported_until_it_walks() {
+        let cfg = LidarPeopleConfig {
+            detector: Detector::Legs,
+            ..LidarPeopleConfig::preset(Preset::Jipda)
+        };
+        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+        let leg = |cx: f64, cy: f64| -> Vec<Point2> {
+            (0..6)
+                .map(|i| {
+                    let a = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
+                    Point2::new(cx + 0.06 * a.cos(), cy + 0.06 * a.sin())
+                })
+                .collect()
+        };
+        let mut reported_while_standing = 0;
+        for k in 0..30u64 {
+            let mut pts = leg(2.0, 3.0);
+            pts.extend(leg(2.3, 3.0));
+            reported_while_standing += tr
+                .step(Stamp::from_frame(k, 0.05), &frame(k, pts))
+                .unwrap()
+                .len();
+        }
+        assert_eq!(reported_while_standing, 0);
+        let mut seen = 0;
+        for k in 30..60u64 {
+            let x = 2.0 + 0.06 * (k - 30) as f64;
+            let mut pts = leg(x, 3.0);
+            pts.extend(leg(x + 0.3, 3.0));
+            seen += tr
+                .step(Stamp::from_frame(k, 0.05), &frame(k, pts))
+                .unwrap()
+                .len();
+        }
+        assert!(seen > 10, "reported once it walked ({seen} frames)");
+    }
+}
