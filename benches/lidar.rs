@@ -157,8 +157,8 @@ fn frames(c: &mut Criterion) {
         }
         eprintln!(
             "lidar_frame/{people} people ({}): one iteration = {n_frames} fused frames, {:.2} tracks per frame",
-            n_tracks as f64 / n_frames.max(1) as f64,
-            preset.name()
+            preset.name(),
+            n_tracks as f64 / n_frames.max(1) as f64
         );
         // end to end: one iteration replays every frame from a fresh warmed-up state
         if !jipda {
