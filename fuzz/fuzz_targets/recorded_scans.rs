@@ -1,5 +1,6 @@
 //! Fuzz the recorded-scan path of `quarry lidar --scans`: the legs CSV parser, and the scan CSV
-//! reader feeding `run_recorded` (background, MeanShift, ICP, Table 1) and `score_labelled`.
+//! reader feeding `run_recorded` (background, then the tracker the first byte picks: Table 1,
+//! `kf-gnn` or `jipda`, with the contour or the leg detector) and `score_labelled`.
 //! Any bytes: a result or a typed error, never a panic.
 #![no_main]
 
@@ -8,7 +9,8 @@ use quarry_core::{Pose2, ScanGeometry};
 use quarry_data::leg_labels::parse_legs_csv;
 use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, ScanCsvReader};
 use quarry_repro::lidar::score_labelled;
-use quarry_trackers::lidar_people::{LidarPeopleConfig, run_recorded};
+use quarry_trackers::TrackerConfig;
+use quarry_trackers::lidar_people::{Detector, LidarPeopleConfig, Preset, run_recorded};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
@@ -30,9 +32,18 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     let scans: Vec<_> = rdr.take(2_000).filter_map(Result::ok).collect();
+    let pick = data.first().copied().unwrap_or(0);
+    let (preset, detector) = match pick % 5 {
+        0 => (Preset::Faithful, Detector::Contour),
+        1 => (Preset::KfGnn, Detector::Contour),
+        2 => (Preset::KfGnn, Detector::Legs),
+        3 => (Preset::Jipda, Detector::Contour),
+        _ => (Preset::Jipda, Detector::Legs),
+    };
     let cfg = LidarPeopleConfig {
         t_warm_s: 0.5,
-        ..LidarPeopleConfig::default()
+        detector,
+        ..LidarPeopleConfig::preset(preset)
     };
     if let Ok(run) = run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0) {
         assert!(run.frames.len() <= scans.len());

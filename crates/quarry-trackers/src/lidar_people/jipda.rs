@@ -354,4 +354,54 @@ mod tests {
         }
         assert!(seen > 10, "reported once it walked ({seen} frames)");
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(128))]
+        /// Any finite frames (people-like arcs, scattered points, empty and no-data frames,
+        /// stamps that jump or go backwards), with either detector: a result, never a panic;
+        /// every report is a confirmed or coasting track with ψ in [0, 1], distinct ids, and
+        /// rows that match the reports.
+        #[test]
+        fn never_panics_and_reports_are_consistent(
+            legs in proptest::bool::ANY,
+            frames in proptest::collection::vec(
+                (
+                    proptest::collection::vec((-20.0..20.0f64, -20.0..20.0f64), 0..60),
+                    proptest::collection::vec((0.5..9.5f64, 0.5..7.5f64), 0..4),
+                    -200_000i64..400_000,
+                    proptest::bool::weighted(0.1),
+                ),
+                1..40,
+            ),
+        ) {
+            let cfg = LidarPeopleConfig {
+                detector: if legs { Detector::Legs } else { Detector::Contour },
+                ..LidarPeopleConfig::preset(Preset::Jipda)
+            };
+            let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+            let mut t = 0i64;
+            for (k, (scatter, people, dt, no_data)) in frames.into_iter().enumerate() {
+                t += dt;
+                let mut points: Vec<Point2> =
+                    scatter.into_iter().map(|(x, y)| Point2::new(x, y)).collect();
+                for (x, y) in people {
+                    points.extend(torso(x, y));
+                }
+                let f = FusedPoints { t: TimeUs(t), points, no_data };
+                let reps = tr.step(Stamp::from_frame(k as u64, 0.05), &f).unwrap();
+                let rows = tr.last_rows();
+                proptest::prop_assert_eq!(rows.len(), reps.len());
+                let mut ids: Vec<_> = reps.iter().map(|r| r.id).collect();
+                ids.sort_unstable();
+                ids.dedup();
+                proptest::prop_assert_eq!(ids.len(), reps.len());
+                for (r, row) in reps.iter().zip(rows) {
+                    proptest::prop_assert_eq!(r.id.0, row.id);
+                    proptest::prop_assert!(matches!(r.status, TrackStatus::Confirmed | TrackStatus::Coasting));
+                    proptest::prop_assert!(r.existence.is_some_and(|e| (0.0..=1.0).contains(&e)));
+                    proptest::prop_assert!(row.x.is_finite() && row.y.is_finite());
+                }
+            }
+        }
+    }
 }
