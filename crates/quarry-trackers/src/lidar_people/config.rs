@@ -207,6 +207,12 @@ pub struct LidarPeopleConfig {
     pub r_m: f64,
     /// Two orientation starts φ_pca, φ_pca + π/2 for new clusters [Q; `literal`: one start at 0].
     pub two_starts: bool,
+    /// With `two_starts`: the second start is skipped when the first already fits with
+    /// e* below this, metres [0 = always both starts (`literal`, `faithful`, `kf-gnn`);
+    /// `jipda`: 0.037, the median e* of true people on tuning seeds 101–103 (§3's d_m_matching
+    /// measurement): a fit that good is not the wrong-orientation minimum the second start is
+    /// for].
+    pub second_start_above: f64,
 
     // ----- Table 1 (§2.8) -----
     /// Minimum support min_num_point [Q: 8].
@@ -392,6 +398,7 @@ impl LidarPeopleConfig {
             icp_trim: true,
             r_m: 0.10,
             two_starts: true,
+            second_start_above: 0.0,
             min_num_point: 8,
             d_m_matching: 0.057,
             r_icp: 0.37,
@@ -465,6 +472,7 @@ impl LidarPeopleConfig {
     pub fn jipda() -> Self {
         Self {
             preset: Preset::Jipda,
+            second_start_above: 0.037,
             ..Self::faithful()
         }
     }
@@ -554,6 +562,7 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             ("icp_e", self.icp_e),
             ("icp_eps_delta", self.icp_eps_delta),
             ("r_m", self.r_m),
+            ("second_start_above", self.second_start_above),
         ];
         for (name, v) in nonneg {
             if !(v.is_finite() && v >= 0.0) {
@@ -715,6 +724,23 @@ mod tests {
         assert_eq!(l.k_m, 16);
         assert_eq!(l.window_m, 40);
         assert!(LidarPeopleConfig::from_toml("bandwidth = -1.0", None).is_err());
+        // the jipda keys: each bad value is refused, naming its key
+        for (bad, key) in [
+            ("second_start_above = -0.1", "second_start_above"),
+            ("jipda_pd = 1.5", "jipda_*"),
+            ("jipda_sigma_r = 0.0", "jipda_*"),
+            ("jipda_birth_exclusion = nan", "jipda_*"),
+            ("jipda_merge_distance = -1.0", "jipda_*"),
+            ("jipda_delete = 0.95", "jipda_*"),
+        ] {
+            let e = LidarPeopleConfig::from_toml(bad, Some(Preset::Jipda)).unwrap_err();
+            assert!(e.to_string().contains(key), "{bad}: {e}");
+        }
+        let j = LidarPeopleConfig::preset(Preset::Jipda);
+        assert_eq!(
+            LidarPeopleConfig::from_toml(&j.to_toml().unwrap(), None).unwrap(),
+            j
+        );
         assert!(LidarPeopleConfig::from_toml("nonsense = 1", None).is_err());
         assert_eq!(LidarPeopleConfig::literal().k_m, 16);
         assert!(!LidarPeopleConfig::literal().icp_trim);

@@ -90,6 +90,8 @@ pub struct ContourDetector<C, R> {
     pub d_m_matching: f64,
     /// Two orientation starts for new clusters (`faithful`), else one start at α = 0.
     pub two_starts: bool,
+    /// The second start runs only when the first fit's e* is at least this (0: always).
+    pub second_start_above: f64,
 }
 
 impl<C: Clusterer, R: Registration2> ContourDetector<C, R> {
@@ -103,13 +105,17 @@ impl<C: Clusterer, R: Registration2> ContourDetector<C, R> {
     }
 
     /// Fit for a new cluster: centre `c`, one start at α = 0 or two starts at φ_pca and
-    /// φ_pca + π/2, keeping the lower e*.
+    /// φ_pca + π/2, keeping the lower e* (the second only when the first's e* is at least
+    /// `second_start_above`).
     pub fn fit_new(&self, data: &[Point2], c: Point2) -> (Pose2, f64) {
         if !self.two_starts {
             return self.fit(data, Pose2::new(c.x, c.y, 0.0));
         }
         let phi = quarry_cloud::contour::pca_angle(data).unwrap_or(0.0);
         let a = self.fit(data, Pose2::new(c.x, c.y, phi));
+        if a.1 < self.second_start_above {
+            return a;
+        }
         let b = self.fit(data, Pose2::new(c.x, c.y, phi + FRAC_PI_2));
         if b.1 < a.1 { b } else { a }
     }
@@ -856,6 +862,7 @@ impl<C: Clusterer, R: Registration2> LidarPeopleTracker<C, R> {
             min_num_point: cfg.min_num_point,
             d_m_matching: cfg.d_m_matching,
             two_starts: cfg.two_starts,
+            second_start_above: cfg.second_start_above,
         };
         Ok(match cfg.preset {
             Preset::KfGnn => Self::KfGnn(KfGnnTracker::new(det, cfg)?),
@@ -985,6 +992,47 @@ mod tests {
         let out =
             suppress_second_fits(vec![fit(0.0, 0.0, 20, 0.03), fit(0.1, 0.0, 20, 0.01)], 0.37);
         assert_eq!(out, vec![fit(0.1, 0.0, 20, 0.01)]);
+    }
+
+    #[test]
+    fn second_start_above_skips_the_second_start_only_after_a_good_first_fit() {
+        use crate::TrackerConfig;
+        let cfg = LidarPeopleConfig::preset(Preset::KfGnn);
+        let LidarPeopleTracker::KfGnn(t) = DefaultLidarTracker::from_config(&cfg).unwrap() else {
+            panic!("kf-gnn builds the kf-gnn tracker");
+        };
+        let mut det = t.detector;
+        // the near half of a torso ellipse rotated by 0.4 rad
+        let (c, s) = (0.4f64.cos(), 0.4f64.sin());
+        let data: Vec<Point2> = (0..40)
+            .map(|i| {
+                let a = std::f64::consts::PI * (1.0 + f64::from(i) / 40.0);
+                let (x, y) = (0.22 * a.cos(), 0.13 * a.sin());
+                Point2::new(3.0 + c * x - s * y, 2.0 + s * x + c * y)
+            })
+            .collect();
+        let centre = Point2::new(3.0, 1.95);
+        let phi = quarry_cloud::contour::pca_angle(&data).unwrap();
+        let first = det.fit(&data, Pose2::new(centre.x, centre.y, phi));
+        let second = det.fit(&data, Pose2::new(centre.x, centre.y, phi + FRAC_PI_2));
+        let best = if second.1 < first.1 { second } else { first };
+        assert_eq!(
+            det.second_start_above, 0.0,
+            "the other presets always run both"
+        );
+        assert_eq!(det.fit_new(&data, centre), best);
+        det.second_start_above = first.1 * 2.0 + 1e-9;
+        assert_eq!(
+            det.fit_new(&data, centre),
+            first,
+            "a good first fit is kept"
+        );
+        det.second_start_above = first.1 * 0.5;
+        assert_eq!(
+            det.fit_new(&data, centre),
+            best,
+            "a poor first fit tries the second"
+        );
     }
 
     proptest! {
