@@ -9,17 +9,16 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::DMatrix;
 use quarry_assoc::lifecycle::TrackState;
 use quarry_cloud::legs::LegDetector;
 use quarry_core::{
-    Clusterer, CoreError, MultiTargetTracker, Point2, Registration2, Stamp, TimeUs, TrackReport,
-    TrackStatus,
+    Clusterer, MultiTargetTracker, Point2, Registration2, Stamp, TimeUs, TrackReport, TrackStatus,
 };
 
 use super::config::LidarPeopleConfig;
 use super::tracker::{
-    ContourDetector, FusedPoints, LidarTrack, detect_people, leg_detector_of, report,
+    ContourDetector, FusedPoints, LidarTrack, detect_people, frame_points, leg_detector_of, report,
+    with_heading_cov,
 };
 use crate::TrackerError;
 use crate::cv_jpda::{JpdaTracker, JpdaTrackerConfig};
@@ -112,17 +111,10 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
         stamp: Stamp,
         frame: &FusedPoints,
     ) -> Result<Vec<TrackReport>, TrackerError> {
-        if frame.no_data {
+        let Some(pts) = frame_points(frame)? else {
             self.last.clear();
             return Ok(Vec::new());
-        }
-        let pts = &frame.points;
-        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
-            return Err(CoreError::NonFinite {
-                what: "fused frame points",
-            }
-            .into());
-        }
+        };
         let t = match self.t_last {
             Some(t0) if frame.t < t0 => t0,
             _ => frame.t,
@@ -181,12 +173,7 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
                 r.status = TrackStatus::Coasting;
             }
             r.existence = Some(tr.existence);
-            if let Some(st) = r.state.as_mut() {
-                let mut cov = DMatrix::zeros(5, 5);
-                cov.view_mut((0, 0), (4, 4)).copy_from(&tr.est.cov);
-                cov[(4, 4)] = 1.0;
-                st.cov = Some(cov);
-            }
+            with_heading_cov(&mut r, &tr.est.cov);
             reports.push(r);
             rows.push(row);
         }

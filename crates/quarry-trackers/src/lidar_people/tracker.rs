@@ -243,6 +243,36 @@ fn heading(alpha: f64, v: Option<Vector2<f64>>) -> f64 {
     }
 }
 
+/// The points of a fused frame to track, `None` for a frame without data (the tracker skips
+/// it); an error when a point is not finite.
+pub(super) fn frame_points(frame: &FusedPoints) -> Result<Option<&[Point2]>, TrackerError> {
+    if frame.no_data {
+        return Ok(None);
+    }
+    if frame
+        .points
+        .iter()
+        .any(|p| !(p.x.is_finite() && p.y.is_finite()))
+    {
+        return Err(CoreError::NonFinite {
+            what: "fused frame points",
+        }
+        .into());
+    }
+    Ok(Some(&frame.points))
+}
+
+/// The 5 × 5 covariance of `[x, y, vx, vy, heading]` from a CV track's 4 × 4 one (heading
+/// variance 1: the heading comes from the contour orientation, not the filter).
+pub(super) fn with_heading_cov(report: &mut TrackReport, cov4: &Matrix4<f64>) {
+    if let Some(st) = report.state.as_mut() {
+        let mut cov = DMatrix::zeros(5, 5);
+        cov.view_mut((0, 0), (4, 4)).copy_from(cov4);
+        cov[(4, 4)] = 1.0;
+        st.cov = Some(cov);
+    }
+}
+
 pub(super) fn report(stamp: Stamp, row: &LidarTrack, vel_known: bool) -> TrackReport {
     let mut r = TrackReport::new(stamp, TrackId(row.id), TrackStatus::Confirmed);
     let v = vel_known.then(|| Vector2::new(row.vx, row.vy));
@@ -333,17 +363,10 @@ impl<C: Clusterer, R: Registration2, G: Gate<PvState, Vector2<f64>>> Table1Track
         stamp: Stamp,
         frame: &FusedPoints,
     ) -> Result<Vec<TrackReport>, TrackerError> {
-        if frame.no_data {
+        let Some(pts) = frame_points(frame)? else {
             self.last.clear();
             return Ok(Vec::new());
-        }
-        let pts = &frame.points;
-        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
-            return Err(CoreError::NonFinite {
-                what: "fused frame points",
-            }
-            .into());
-        }
+        };
         let t = frame.t;
         let cl = if pts.is_empty() {
             Clustering::default()
@@ -653,17 +676,10 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         stamp: Stamp,
         frame: &FusedPoints,
     ) -> Result<Vec<TrackReport>, TrackerError> {
-        if frame.no_data {
+        let Some(pts) = frame_points(frame)? else {
             self.last.clear();
             return Ok(Vec::new());
-        }
-        let pts = &frame.points;
-        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
-            return Err(CoreError::NonFinite {
-                what: "fused frame points",
-            }
-            .into());
-        }
+        };
         let t = frame.t;
         let dt = self.t_last.map_or(0.0, |t0| t.secs_since(t0)).max(0.0);
         self.t_last = Some(t);
@@ -785,13 +801,7 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
             if tr.misses > 0 {
                 r.status = TrackStatus::Coasting;
             }
-            let c: Matrix4<f64> = *tr.kf.cov();
-            if let Some(st) = r.state.as_mut() {
-                let mut cov = DMatrix::zeros(5, 5);
-                cov.view_mut((0, 0), (4, 4)).copy_from(&c);
-                cov[(4, 4)] = 1.0;
-                st.cov = Some(cov);
-            }
+            with_heading_cov(&mut r, tr.kf.cov());
             reports.push(r);
             rows.push(row);
         }
