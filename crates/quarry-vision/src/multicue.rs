@@ -1025,32 +1025,42 @@ impl PatchMultiCueModel {
 }
 
 /// The exact f32 edges of the depth band: for every f32 `z`, `(z − zs)/τ < −1` ⟺ `z < lo` and
-/// `(z − zs)/τ ≤ 1` ⟺ `z ≤ hi` (both sides are monotone in `z` under rounding, so the edges are
-/// found by stepping ulps from `zs ∓ τ`). The band test then needs no subtraction or division
-/// per pixel and classifies every pixel exactly as the formula does.
+/// `(z − zs)/τ ≤ 1` ⟺ `z ≤ hi`. Both sides are monotone in `z` under rounding, so each edge is
+/// found by bisection over the ordered f32 values between `zs ∓ 2τ` and `zs` (exact whatever
+/// the ulp scale: near 0 one rounding step of `z − zs` spans hundreds of ulps of `z`, which an
+/// ulp-by-ulp walk from `zs ∓ τ` did not always cover). The band test then needs no
+/// subtraction or division per pixel and classifies every pixel exactly as the formula does.
 fn band_edges(zs: f32, tau: f32) -> (f32, f32) {
     let d = |z: f32| (z - zs) / tau;
-    let mut lo = zs - tau;
-    for _ in 0..64 {
-        if d(lo) < -1.0 {
-            lo = lo.next_up();
-        } else if d(lo.next_down()) >= -1.0 {
-            lo = lo.next_down();
+    // f32 -> u32 preserving the order of finite values, and back
+    let key = |x: f32| {
+        let b = x.to_bits();
+        if b & 0x8000_0000 != 0 {
+            !b
         } else {
-            break;
+            b | 0x8000_0000
         }
-    }
-    let mut hi = zs + tau;
-    for _ in 0..64 {
-        if d(hi) > 1.0 {
-            hi = hi.next_down();
-        } else if d(hi.next_up()) <= 1.0 {
-            hi = hi.next_up();
+    };
+    let val = |k: u32| {
+        f32::from_bits(if k & 0x8000_0000 != 0 {
+            k & 0x7fff_ffff
         } else {
-            break;
+            !k
+        })
+    };
+    // smallest z in (a, b] with pred(z), given !pred(a) and pred(b), pred monotone
+    let first_true = |a: f32, b: f32, pred: &dyn Fn(f32) -> bool| {
+        let (mut lo, mut hi) = (key(a), key(b));
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if pred(val(mid)) { hi = mid } else { lo = mid }
         }
-    }
-    (lo, hi)
+        val(hi)
+    };
+    let lo = first_true(zs - 2.0 * tau, zs, &|z| d(z) >= -1.0);
+    // the largest z with d(z) <= 1 is the one below the smallest with d(z) > 1
+    let above = first_true(zs, zs + 2.0 * tau, &|z| d(z) > 1.0);
+    (lo, val(key(above) - 1))
 }
 
 fn finish(acc: &[f32], m_min: f64) -> Result<Option<Histogram>, VisionError> {
@@ -1202,6 +1212,20 @@ mod tests {
         assert!(PatchMultiCueModel::new(PatchModelConfig { th: 2.0, ..c }, &f, &b, &b).is_err());
     }
 
+    #[test]
+    fn band_edges_hold_where_the_lower_edge_is_just_below_zero() {
+        let (zs, tau) = (0.640_141_96_f32, 0.643_665_97_f32);
+        let (lo, hi) = band_edges(zs, tau);
+        let d = |z: f32| (z - zs) / tau;
+        assert!(d(lo) >= -1.0 && d(lo.next_down()) < -1.0, "lo {lo}");
+        assert!(d(hi) <= 1.0 && d(hi.next_up()) > 1.0, "hi {hi}");
+        let mut z = lo;
+        for _ in 0..600 {
+            z = z.next_down();
+            assert!(z < lo && d(z) < -1.0 || d(z) >= -1.0 && z >= lo, "z {z}");
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]
         /// §6.1.3: φ finite, non-negative, non-decreasing, equals ρ²/(1−ρ²) below ρ_max.
@@ -1257,6 +1281,9 @@ mod tests {
         }
 
         /// The precomputed band edges classify every depth exactly as `(z − Z*)/τ` does.
+        /// (Z* < τ puts the lower edge just below 0, where one rounding step of `z − Z*` spans
+        /// hundreds of ulps of `z`: a case the first, ulp-walking version got wrong; CI seed
+        /// zs = 0.64014196, τ = 0.64366597.)
         #[test]
         fn band_edges_are_exact(zs in 0.05f32..8.0, tau in 0.01f32..1.0, t in -2.0f32..2.0, k in -3i32..=3) {
             let (lo, hi) = band_edges(zs, tau);
