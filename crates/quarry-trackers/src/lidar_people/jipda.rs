@@ -43,9 +43,11 @@ struct Extra {
 ///   `β_ij` (the PDA update), and a frame where the person is not seen leaves the track
 ///   coasting on its velocity with a growing covariance, hence a growing gate.
 /// - A track is born, tentative, at existence `jipda_birth` from a detection the tracks do not
-///   explain (`Σ_i β_ij < 0.5`) and farther than `r_icp` from every track (a second fit of a
-///   tracked body starts no twin); it is reported once its existence reaches `jipda_confirm`
-///   and deleted when it falls below `jipda_delete`.
+///   explain (`Σ_i β_ij < 0.5`) and farther than `jipda_birth_exclusion` from every track (a
+///   second fit of a tracked body starts no twin); it is reported once its existence reaches
+///   `jipda_confirm` and deleted when it falls below `jipda_delete`. Of two tracks closer than
+///   `jipda_merge_distance`, one is deleted (the tentative, then the undetected, then the
+///   younger).
 /// - A coasting track is reported with [`TrackStatus::Coasting`] and support 0 for at most
 ///   `jipda_max_coast_report` frames (it lives on, unreported, until its existence says it
 ///   is gone, and is reported again under its id once detected); every report
