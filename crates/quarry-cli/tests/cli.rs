@@ -209,6 +209,20 @@ fn demo_json_reports_kf_rmse() {
     assert!(rmse > 0.15 && rmse < 0.45, "rmse {rmse}");
     assert!(kf["ms_per_frame"].as_f64().unwrap() > 0.0);
     assert!(kf["paper"].is_null());
+    // the lidar rows: faithful and jipda on the same run, jipda keeping identities
+    let idf1 = |preset: &str| {
+        rows.iter()
+            .find(|r| {
+                r["tracker"] == "lidar-people"
+                    && r["metric"] == "IDF1"
+                    && r["scenario"].as_str().unwrap().contains(preset)
+            })
+            .unwrap_or_else(|| panic!("lidar-people IDF1 row of {preset}"))["value"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(idf1("jipda") >= 0.9, "jipda IDF1 {}", idf1("jipda"));
+    assert!(idf1("jipda") >= idf1("faithful"));
     // same seed, same numbers (only the KF demo, to keep the test fast)
     let (code, again, _) = quarry(&["demo", "--json", "--only", "kf-cv"]);
     assert_eq!(code, 0);

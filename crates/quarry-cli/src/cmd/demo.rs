@@ -36,7 +36,7 @@ baseline on the first 210 frames of synthetic S1 (static robot, crossing occlude
 at IoU 0.5 and centre error.
   slamot   PFJPDA_SLAMOT (paper 000) on S0, one run with 50 particles: robot and target \
 mean errors beside the paper's.
-  lidar-people   the lidar people tracker (paper 003), faithful preset on the simulated room.
+  lidar-people   the lidar people tracker (paper 003), faithful and jipda presets on the simulated room.
 
 Ctrl-C (or SIGTERM) ends the demo after the tracker in progress: the rows so far are printed \
 with \"interrupted\": true and the exit status is 130; a second Ctrl-C stops at once.
@@ -90,7 +90,7 @@ fn rgbd_person(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
     super::rgbd::demo_rows(args.seed)
 }
 
-/// The lidar people tracker (paper 003), `faithful` preset on band_mid.
+/// The lidar people tracker (paper 003), `faithful` and `jipda` presets on band_mid.
 fn lidar_people(args: &DemoArgs) -> Result<Vec<Row>, CmdError> {
     super::lidar::demo_rows(args.seed)
 }

@@ -938,28 +938,37 @@ fn plot_recorded(
     Ok(())
 }
 
-/// The `quarry demo` rows: `faithful` on `band_mid` (seed `seed`, 600 evaluated frames = 30 s),
-/// success rate and mean localisation error beside the paper's 90.88 % and 0.18 m.
+/// The `quarry demo` rows: `faithful`, then `jipda`, on `band_mid` (seed `seed`, 600 evaluated
+/// frames = 30 s): success rate and mean localisation error beside the paper's 90.88 % and
+/// 0.18 m, MOTA and IDF1.
 pub fn demo_rows(seed: u64) -> Result<Vec<super::demo::Row>, crate::output::CmdError> {
-    let cfg = LidarPeopleConfig::faithful();
     let quiet = Output { json: true };
-    let (s, ..) = run_sim_band(SpeedBand::Mid, 3, 600, seed, &cfg, &quiet)?;
-    let scenario = "band_mid (spec 003), 3 people, 600 frames".to_string();
-    let row = |metric: &str, value: f64, paper: Option<f64>| super::demo::Row {
-        tracker: "lidar-people".into(),
-        scenario: scenario.clone(),
-        metric: metric.into(),
-        value,
-        paper,
-        ms_per_frame: Some(s.ms_per_frame),
-    };
-    Ok(vec![
-        row(
-            "paper success rate (%)",
-            100.0 * s.success_rate,
-            Some(90.88),
-        ),
-        row("mean localisation error (m)", s.loc_error_m, Some(0.18)),
-        row("MOTA", s.mota, None),
-    ])
+    let mut rows = Vec::new();
+    // the paper's tracker, then the jipda preset on the same run (identities: IDF1)
+    for (cfg, name) in [
+        (LidarPeopleConfig::faithful(), "faithful"),
+        (LidarPeopleConfig::jipda(), "jipda"),
+    ] {
+        let (s, ..) = run_sim_band(SpeedBand::Mid, 3, 600, seed, &cfg, &quiet)?;
+        let scenario = format!("band_mid (spec 003), 3 people, 600 frames, {name} preset");
+        let row = |metric: &str, value: f64, paper: Option<f64>| super::demo::Row {
+            tracker: "lidar-people".into(),
+            scenario: scenario.clone(),
+            metric: metric.into(),
+            value,
+            paper,
+            ms_per_frame: Some(s.ms_per_frame),
+        };
+        rows.extend([
+            row(
+                "paper success rate (%)",
+                100.0 * s.success_rate,
+                Some(90.88),
+            ),
+            row("mean localisation error (m)", s.loc_error_m, Some(0.18)),
+            row("MOTA", s.mota, None),
+            row("IDF1", s.idf1, None),
+        ]);
+    }
+    Ok(rows)
 }
