@@ -210,6 +210,16 @@ impl MultiTargetTracker for JpdaTracker {
         stamp: Stamp,
         input: &Vec<[f64; 2]>,
     ) -> Result<Vec<TrackReport>, TrackerError> {
+        self.advance(stamp, input)?;
+        Ok(self.report(stamp))
+    }
+}
+
+impl JpdaTracker {
+    /// [`MultiTargetTracker::step`] without building the reports: predicts, associates,
+    /// updates and manages the tracks for one scan of position detections. For a caller that
+    /// reads [`tracks`](Self::tracks) and reports in its own form.
+    pub fn advance(&mut self, stamp: Stamp, input: &[[f64; 2]]) -> Result<(), TrackerError> {
         if input.iter().flatten().any(|v| !v.is_finite()) {
             return Err(CoreError::NonFinite {
                 what: "detection position",
@@ -351,7 +361,7 @@ impl MultiTargetTracker for JpdaTracker {
                 self.birth(z, j);
             }
         }
-        Ok(self.report(stamp))
+        Ok(())
     }
 }
 

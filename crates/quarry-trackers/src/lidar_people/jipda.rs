@@ -124,7 +124,7 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
         self.t_last = Some(t);
         let dets = detect_people(&self.detector, self.legs.as_ref(), pts, self.r_icp)?;
         let z: Vec<[f64; 2]> = dets.iter().map(|d| [d.pose.x, d.pose.y]).collect();
-        self.inner.step(Stamp { t, ..stamp }, &z)?;
+        self.inner.advance(Stamp { t, ..stamp }, &z)?;
 
         let mut rows = Vec::new();
         let mut reports = Vec::new();
@@ -179,8 +179,10 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
             reports.push(r);
             rows.push(row);
         }
+        // the tracks are in id order (born with increasing ids, deleted in place)
         let live: Vec<u32> = self.inner.tracks().iter().map(|t| t.id.0).collect();
-        self.extra.retain(|id, _| live.contains(id));
+        debug_assert!(live.windows(2).all(|w| w[0] < w[1]));
+        self.extra.retain(|id, _| live.binary_search(id).is_ok());
         self.last = rows;
         Ok(reports)
     }
