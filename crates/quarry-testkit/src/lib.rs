@@ -12,6 +12,8 @@
 //!   event ([`brute::joint_events`], [`brute::jpda_marginals`], [`brute::best_event_log_weight`]),
 //!   and linear-scan radius / nearest-neighbour queries ([`brute::within`],
 //!   [`brute::nearest_distance`]).
+//! - [`python`]: a pinned Python venv for the tests that read quarry's output back with Python
+//!   tools ([`python::venv_or_skip`]); required in CI (`QUARRY_REQUIRE_PYTHON=1`).
 //!
 //! They are written for clarity, not speed: exponential enumeration, linear scans.
 //!
@@ -41,4 +43,5 @@
 //! types. quarry-core's integration tests (`tests/`) may use it.
 
 pub mod brute;
+pub mod python;
 pub mod strategies;
