@@ -15,6 +15,7 @@ mod fonts;
 mod interrupt;
 mod output;
 mod progress;
+mod record;
 
 use output::Output;
 

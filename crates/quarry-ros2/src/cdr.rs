@@ -314,7 +314,11 @@ impl<'a> CdrReader<'a> {
 
     /// Reads a sequence's count and checks that `min_elem_bytes` per element fit in what is
     /// left (so the caller may reserve `count` elements).
-    pub fn seq_len(&mut self, field: &'static str, min_elem_bytes: usize) -> Result<usize, CdrError> {
+    pub fn seq_len(
+        &mut self,
+        field: &'static str,
+        min_elem_bytes: usize,
+    ) -> Result<usize, CdrError> {
         let count = self.u32(field)?;
         let left = self.remaining();
         if (count as usize).saturating_mul(min_elem_bytes.max(1)) > left

@@ -13,6 +13,8 @@
 //!   `visualization_msgs` (Marker, MarkerArray), `vision_msgs` (Detection2DArray) as in ROS 2
 //!   Jazzy, and `quarry_msgs` (Track, TrackArray; the `.msg` files are in `msg/`).
 //! - [`McapRecorder`] (feature `mcap`, on by default): writes an MCAP file with the `ros2` profile.
+//! - [`convert`]: quarry-core's `PolarScan` to and from `LaserScan` (with the checks a
+//!   subscriber needs: beam count, angles, ranges), stamps to and from ROS time.
 //! - [`rmw_zenoh`]: key expressions, sample attachments and liveliness tokens of rmw_zenoh.
 //!
 //! ```
@@ -46,6 +48,7 @@
 //! - `mcap` (default): [`McapRecorder`], on the `mcap` crate without compression.
 
 pub mod cdr;
+pub mod convert;
 #[cfg(feature = "mcap")]
 mod mcap_rec;
 pub mod msgs;

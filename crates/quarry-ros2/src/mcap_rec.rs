@@ -217,11 +217,15 @@ impl McapRecorder {
     /// A write failure (e.g. the disk filled up).
     pub fn finish(mut self) -> Result<RecordSummary, RecordError> {
         self.writer.finish().map_err(|e| self.mcap_err(&e))?;
-        self.writer.flush().map_err(|e| self.mcap_err(&e))?;
-        Ok(RecordSummary {
+        let summary = RecordSummary {
             messages: self.messages,
             channels: self.channels.len(),
             schemas: self.schemas.len(),
-        })
+        };
+        let path = self.path.clone();
+        // flush the buffer here, where its error can be reported (not in a drop)
+        let mut file = self.writer.into_inner();
+        std::io::Write::flush(&mut file).map_err(|source| RecordError::Io { path, source })?;
+        Ok(summary)
     }
 }

@@ -21,7 +21,9 @@ ros_msg! {
 impl Time {
     /// From nanoseconds (negative values count back from 0; seconds saturate at `i32`).
     pub fn from_nanos(ns: i64) -> Self {
-        let sec = ns.div_euclid(NS).clamp(i64::from(i32::MIN), i64::from(i32::MAX));
+        let sec = ns
+            .div_euclid(NS)
+            .clamp(i64::from(i32::MIN), i64::from(i32::MAX));
         Self {
             sec: sec as i32,
             nanosec: ns.rem_euclid(NS) as u32,

@@ -46,7 +46,10 @@ pub fn check_topic(topic: &str) -> Result<(), String> {
                 "topic `{topic}`: segment `{seg}` starts with a digit"
             ));
         }
-        if let Some(c) = seg.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '_')) {
+        if let Some(c) = seg
+            .chars()
+            .find(|c| !(c.is_ascii_alphanumeric() || *c == '_'))
+        {
             return Err(format!(
                 "topic `{topic}`: `{c}` is not allowed (letters, digits, `_` and `/`)"
             ));

@@ -177,7 +177,11 @@ fn samples() -> Vec<(&'static str, String, String, Vec<u8>)> {
     }
     let (ci, im) = images();
     vec![
-        one(&scan(vec![1.0, 2.5, f32::INFINITY, 0.25], "laser", 1_500_000_001)),
+        one(&scan(
+            vec![1.0, 2.5, f32::INFINITY, 0.25],
+            "laser",
+            1_500_000_001,
+        )),
         one(&tracks()),
         one(&markers()),
         one(&detections()),
@@ -186,9 +190,7 @@ fn samples() -> Vec<(&'static str, String, String, Vec<u8>)> {
         one(&pose_array()),
         one(&ci),
         one(&im),
-        one(&StdString {
-            data: "odd".into(),
-        }),
+        one(&StdString { data: "odd".into() }),
     ]
 }
 
@@ -198,7 +200,12 @@ fn roundtrip<M: Message + PartialEq + std::fmt::Debug>(m: &M) {
     // every strict prefix is an error (or, for a prefix ending in padding, the same message)
     for n in 0..b.len() {
         if let Ok(p) = M::from_cdr(&b[..n]) {
-            assert_eq!(&p, m, "prefix {n} of {} decoded to another message", M::NAME);
+            assert_eq!(
+                &p,
+                m,
+                "prefix {n} of {} decoded to another message",
+                M::NAME
+            );
         }
     }
 }
@@ -285,8 +292,14 @@ fn rosbags_reads_and_writes_the_same_bytes_and_hashes() {
     assert_eq!(recs.len(), all.len());
     for r in recs {
         let ty = r["type"].as_str().unwrap();
-        assert_eq!(r["hash_quarry"], r["hash_rosbags"], "{ty}: type hash differs");
-        assert_eq!(r["bytes_equal"], true, "{ty}: rosbags re-serialises other bytes");
+        assert_eq!(
+            r["hash_quarry"], r["hash_rosbags"],
+            "{ty}: type hash differs"
+        );
+        assert_eq!(
+            r["bytes_equal"], true,
+            "{ty}: rosbags re-serialises other bytes"
+        );
         match ty {
             "sensor_msgs/msg/LaserScan" => {
                 assert_eq!(r["frame_id"], "laser");
@@ -309,5 +322,9 @@ fn rosbags_reads_and_writes_the_same_bytes_and_hashes() {
     }
     // the standard types were checked against Jazzy's own definitions, not ours
     let standard = recs.iter().filter(|r| r["standard"] == true).count();
-    assert_eq!(standard, all.len() - 2, "vision_msgs and quarry_msgs are the only non-Jazzy-store types here");
+    assert_eq!(
+        standard,
+        all.len() - 2,
+        "vision_msgs and quarry_msgs are the only non-Jazzy-store types here"
+    );
 }

@@ -7,6 +7,7 @@
 use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, at};
 use crate::progress;
+use crate::record::{self, Mcap, McapInfo, PlanarTrack};
 use clap::Args;
 use plotters::prelude::*;
 use quarry_core::{Point2, Pose2, TimeUs};
@@ -141,6 +142,11 @@ pub struct LidarArgs {
     /// repeats the previous row's (a duplicated row) instead of stopping at the first one.
     #[arg(long)]
     pub skip_bad_rows: bool,
+    /// Record the run as MCAP (ROS 2 messages, CDR): the scans (`/scan/...`, LaserScan), the
+    /// tracks (`/tracks`, quarry_msgs/TrackArray; `/tracks/markers`, MarkerArray), the ground
+    /// truth or labels, and the frames (`/tf_static`). Opens in Foxglove; docs/ros2.md.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// Detections: contour (MeanShift + torso-ellipse ICP, the paper's; default) or legs (leg
     /// clusters paired into people, for one scanner at leg height; quarry_cloud::legs). legs
     /// runs the kf-gnn or jipda tracker: without --preset it selects kf-gnn, with literal or
@@ -189,6 +195,65 @@ pub struct LidarSummary {
     pub calibration: Option<lidar_people::CalibrationReport>,
     /// Stopped by Ctrl-C / SIGTERM: the metrics cover the frames up to then (`frames`).
     pub interrupted: bool,
+    /// With `--mcap`: the recording.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mcap: Option<McapInfo>,
+}
+
+/// The TF frame of a simulated scanner (`scanner_<name>`, its name's non-identifier characters
+/// as `_`).
+fn scanner_frame(name: &str) -> String {
+    let clean: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    format!("scanner_{clean}")
+}
+
+/// Lidar tracks as planar tracks for the recording.
+pub(crate) fn planar(tracks: &[LidarTrack]) -> Vec<PlanarTrack> {
+    tracks
+        .iter()
+        .map(|r| PlanarTrack::at(r.id, r.x, r.y, r.vx, r.vy))
+        .collect()
+}
+
+/// Writes a simulated run's results into its recording (the scans are in already):
+/// `/tf_static` (map → each scanner), `/tracks` and `/tracks/markers` per tracked frame, and
+/// `/ground_truth/people` per ground-truth frame.
+fn record_room(mut m: Mcap, sc: &Scenario, run: &RoomRun) -> Result<McapInfo, CmdError> {
+    let children: Vec<(String, quarry_core::Pose2)> = sc
+        .scanners
+        .iter()
+        .map(|s| (scanner_frame(&s.name), s.pose))
+        .collect();
+    m.write(
+        "/tf_static",
+        TimeUs(0),
+        &record::static_tf(TimeUs(0), "map", &children),
+    )?;
+    for (_, t, rows) in &run.tracks {
+        let p = planar(rows);
+        m.write("/tracks", *t, &record::tracks_msg(*t, "map", &p))?;
+        m.write(
+            "/tracks/markers",
+            *t,
+            &record::markers_msg(*t, "map", &p, 1.2),
+        )?;
+    }
+    for g in &run.gt {
+        let p: Vec<PlanarTrack> = g
+            .people
+            .iter()
+            .map(|q| PlanarTrack::at(q.id, q.x, q.y, 0.0, 0.0))
+            .collect();
+        m.write(
+            "/ground_truth/people",
+            g.t,
+            &record::tracks_msg(g.t, "map", &p),
+        )?;
+    }
+    m.finish()
 }
 
 /// Runs one simulated band and returns the summary (used by `quarry demo` too).
@@ -216,13 +281,27 @@ pub fn run_sim_variant(
     network: Option<NetworkModel>,
     clock: Option<ClockProfile>,
 ) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), CmdError> {
+    let sc = band_scenario(band, people, frames, seed, cfg);
+    run_sim_scenario(sc, band.name(), frames, cfg, out, network, clock, None)
+}
+
+/// The band protocol's scenario: `people` walkers of `band`, long enough for the 7 s warm-up
+/// and `frames` evaluated frames.
+fn band_scenario(
+    band: SpeedBand,
+    people: u32,
+    frames: usize,
+    seed: u64,
+    cfg: &LidarPeopleConfig,
+) -> Scenario {
     let duration = 7.0 + frames as f64 * cfg.frame_period_s + 0.3;
-    let sc = Scenario::band(band, people, seed).with_duration(duration);
-    run_sim_scenario(sc, band.name(), frames, cfg, out, network, clock)
+    Scenario::band(band, people, seed).with_duration(duration)
 }
 
 /// Runs scenario `sc` (its own duration) and scores up to `frames` frames from t = 7 s;
-/// `band` is the name reported in the summary.
+/// `band` is the name reported in the summary. With `mcap`, every simulated scan is recorded on
+/// `/scan/<scanner>` as it is captured.
+#[allow(clippy::too_many_arguments)]
 fn run_sim_scenario(
     mut sc: Scenario,
     band: &str,
@@ -231,6 +310,7 @@ fn run_sim_scenario(
     out: &Output,
     network: Option<NetworkModel>,
     clock: Option<ClockProfile>,
+    mut mcap: Option<&mut Mcap>,
 ) -> Result<(LidarSummary, RoomRun, Vec<EvalFrame>, Scenario), CmdError> {
     if let Some(n) = network {
         sc = sc.with_network(n);
@@ -246,9 +326,29 @@ fn run_sim_scenario(
     let mut on_progress = |f: f64| pb.set_position((f * 1000.0) as u64);
     // Ctrl-C (with `crate::interrupt::install`, as `quarry lidar` does) ends the run at the
     // next frame; the summary then scores the frames up to it
-    let run =
-        repro::run_room_default_until(sc.clone(), cfg, &mut on_progress, crate::interrupt::flag())?;
+    let names: Vec<String> = sc.scanners.iter().map(|s| scanner_frame(&s.name)).collect();
+    let mut record_err: Option<CmdError> = None;
+    let mut on_scan = |i: usize, scan: &quarry_core::PolarScan| {
+        if let Some(m) = mcap.as_deref_mut()
+            && record_err.is_none()
+        {
+            let msg = quarry_ros2::convert::laser_scan(scan, &names[i]);
+            if let Err(e) = m.write(&format!("/scan/{}", names[i]), scan.t, &msg) {
+                record_err = Some(e);
+            }
+        }
+    };
+    let run = repro::run_room_default_observed(
+        sc.clone(),
+        cfg,
+        &mut on_progress,
+        crate::interrupt::flag(),
+        &mut on_scan,
+    )?;
     pb.finish_and_clear();
+    if let Some(e) = record_err {
+        return Err(e);
+    }
     let window = run.eval_window(TimeUs(7_000_000), frames);
     let m = repro::evaluate_paper003(
         &window,
@@ -276,6 +376,7 @@ fn run_sim_scenario(
         metrics: m,
         calibration: run.calibration.clone(),
         interrupted: run.interrupted,
+        mcap: None,
     };
     Ok((summary, run, window, sc))
 }
@@ -319,6 +420,7 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
         .map(NetworkModel::parse)
         .transpose()?;
     let clock = args.clock.as_deref().map(ClockProfile::parse).transpose()?;
+    let mut mcap = Mcap::open(args.mcap.as_ref())?;
     let (summary, run, window, sc) = if let Some(name) = &args.scenario {
         let sc =
             Scenario::by_name(name, args.seed).map_err(|e| format!("--scenario {name}: {e}"))?;
@@ -328,19 +430,37 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
             Some(r) if r == SpeedBand::Fast.range() => "fast",
             _ => "-",
         };
-        run_sim_scenario(sc, band, args.frames, &cfg, output, network, clock)?
-    } else {
-        let band = SpeedBand::parse(&args.band)?;
-        run_sim_variant(
+        run_sim_scenario(
+            sc,
             band,
-            args.people,
             args.frames,
-            args.seed,
             &cfg,
             output,
             network,
             clock,
+            mcap.as_mut(),
         )?
+    } else {
+        let band = SpeedBand::parse(&args.band)?;
+        let sc = band_scenario(band, args.people, args.frames, args.seed, &cfg);
+        run_sim_scenario(
+            sc,
+            band.name(),
+            args.frames,
+            &cfg,
+            output,
+            network,
+            clock,
+            mcap.as_mut(),
+        )?
+    };
+    let mcap_info = match mcap {
+        Some(m) => Some(record_room(m, &sc, &run)?),
+        None => None,
+    };
+    let summary = LidarSummary {
+        mcap: mcap_info,
+        ..summary
     };
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out).map_err(at(out))?;
@@ -383,12 +503,53 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
                 out.display()
             );
         }
+        if let Some(m) = &summary.mcap {
+            let _ = writeln!(
+                t,
+                "recorded {} messages on {} topics to {}",
+                m.messages, m.topics, m.path
+            );
+        }
         t
     })?;
     if summary.interrupted {
         return Err(Box::new(crate::interrupt::Interrupted));
     }
     Ok(())
+}
+
+/// Writes a recorded run into its recording: `/tf_static` (map → laser, identity), `/scan`
+/// (every scan read, LaserScan in `laser`), `/tracks` and `/tracks/markers` per processed scan,
+/// and with `--legs` `/ground_truth/person` (PoseStamped, the labelled person).
+fn record_recorded(
+    mut m: Mcap,
+    polar: &[quarry_core::PolarScan],
+    run: &lidar_people::RecordedRun,
+    labels: &[quarry_data::leg_labels::LabelledPerson],
+) -> Result<McapInfo, CmdError> {
+    let t0 = polar.first().map_or(TimeUs(0), |s| s.t);
+    let laser = [("laser".to_string(), Pose2::default())];
+    m.write("/tf_static", t0, &record::static_tf(t0, "map", &laser))?;
+    for s in polar {
+        m.write("/scan", s.t, &quarry_ros2::convert::laser_scan(s, "laser"))?;
+    }
+    for f in &run.frames {
+        let p = planar(&f.tracks);
+        m.write("/tracks", f.t, &record::tracks_msg(f.t, "laser", &p))?;
+        m.write(
+            "/tracks/markers",
+            f.t,
+            &record::markers_msg(f.t, "laser", &p, 0.8),
+        )?;
+    }
+    for l in labels {
+        let msg = quarry_ros2::msgs::PoseStamped {
+            header: quarry_ros2::msgs::Header::new(record::time(l.t), "laser"),
+            pose: quarry_ros2::msgs::Pose::planar(l.pos.x, l.pos.y, 0.0),
+        };
+        m.write("/ground_truth/person", l.t, &msg)?;
+    }
+    m.finish()
 }
 
 /// The JSON summary of a `--scans` run.
@@ -430,6 +591,9 @@ pub struct RecordedSummary {
     pub ms_per_frame: f64,
     /// Background time per scan, ms.
     pub client_ms_per_scan: f64,
+    /// With `--mcap`: the recording.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mcap: Option<McapInfo>,
 }
 
 fn run_recorded_cmd(
@@ -479,15 +643,21 @@ fn run_recorded_cmd(
     if polar.is_empty() {
         return Err(format!("{}: no scans", scans.display()).into());
     }
+    let mut mcap = Mcap::open(args.mcap.as_ref())?;
     let run = lidar_people::run_recorded(cfg, &geometry, Pose2::default(), &polar, 3.0)?;
     let mut label_positions: Vec<Point2> = Vec::new();
+    let mut labels = Vec::new();
     let labelled = match &args.legs {
         Some(p) => {
             let text = std::fs::read_to_string(p).map_err(at(p))?;
-            let labels = parse_legs_csv(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+            labels = parse_legs_csv(&text).map_err(|e| format!("{}: {e}", p.display()))?;
             label_positions = labels.iter().map(|l| l.pos).collect();
             Some(score_labelled(&run, &labels, cfg.d_match)?)
         }
+        None => None,
+    };
+    let mcap_info = match mcap.take() {
+        Some(m) => Some(record_recorded(m, &polar, &run, &labels)?),
         None => None,
     };
     let min_scans = (1.0 / geometry.scan_period).ceil() as usize;
@@ -515,6 +685,7 @@ fn run_recorded_cmd(
         labelled,
         ms_per_frame: 1e3 * run.tracker_seconds / n,
         client_ms_per_scan: 1e3 * run.client_seconds / n,
+        mcap: mcap_info,
     };
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out).map_err(at(out))?;
@@ -584,6 +755,9 @@ fn run_recorded_cmd(
             "  tracker {:.3} ms per scan, background {:.3} ms per scan",
             summary.ms_per_frame, summary.client_ms_per_scan
         );
+        if let Some(m) = &summary.mcap {
+            let _ = writeln!(t, "  recorded {} messages on {} topics to {}", m.messages, m.topics, m.path);
+        }
         t
     })
 }

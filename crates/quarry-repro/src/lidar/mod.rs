@@ -31,4 +31,6 @@ pub use metrics::{
     EvalFrame, LocStats, Paper003Metrics, evaluate_paper003, loc_stats, match_within, paper_success,
 };
 pub use recorded::{LabelledError, score_labelled};
-pub use room::{RoomRun, run_room, run_room_default, run_room_default_until};
+pub use room::{
+    RoomRun, run_room, run_room_default, run_room_default_observed, run_room_default_until,
+};

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use quarry_core::{
-    BackgroundModel, MultiTargetTracker, Point2, Pose2, ScanGeometry, SensorId, TimeUs,
+    BackgroundModel, MultiTargetTracker, Point2, PolarScan, Pose2, ScanGeometry, SensorId, TimeUs,
 };
 use quarry_net::AssemblerFusion;
 use quarry_sim::lidar_room::{GtFrame, RoomEvent, Runner, Scenario};
@@ -87,7 +87,8 @@ impl RoomRun {
 ///
 /// `stop` is read at every ground-truth frame: once it is set, the run delivers what is in
 /// flight, closes the due frames and returns with [`RoomRun::interrupted`] set (for Ctrl-C
-/// in a command line; pass a flag that stays `false` to run to the end).
+/// in a command line; pass a flag that stays `false` to run to the end). `on_scan` sees every
+/// simulated scan (scanner index, scan) before its client pipeline does.
 pub fn run_room<B, F, T>(
     sc: Scenario,
     cfg: &LidarPeopleConfig,
@@ -96,6 +97,7 @@ pub fn run_room<B, F, T>(
     tracker: T,
     progress: &mut dyn FnMut(f64),
     stop: &AtomicBool,
+    on_scan: &mut dyn FnMut(usize, &PolarScan),
 ) -> Result<RoomRun>
 where
     B: BackgroundModel,
@@ -166,6 +168,7 @@ where
                 let now = cs.t_true.0;
                 let t0 = Instant::now();
                 let i = cs.scanner;
+                on_scan(i, &cs.scan);
                 let msg = clients[i].on_scan(&cs.scan, cs.clock_synced)?;
                 run.client_seconds += t0.elapsed().as_secs_f64();
                 if let Some(p) = calib.as_mut()
@@ -249,6 +252,19 @@ pub fn run_room_default_until(
     progress: &mut dyn FnMut(f64),
     stop: &AtomicBool,
 ) -> Result<RoomRun> {
+    run_room_default_observed(sc, cfg, progress, stop, &mut |_, _| {})
+}
+
+/// [`run_room_default_until`] that also hands every simulated scan to `on_scan` (scanner index
+/// in `sc.scanners`, the scan as captured) before the client pipeline sees it: what
+/// `quarry lidar --mcap` records as the run's input.
+pub fn run_room_default_observed(
+    sc: Scenario,
+    cfg: &LidarPeopleConfig,
+    progress: &mut dyn FnMut(f64),
+    stop: &AtomicBool,
+    on_scan: &mut dyn FnMut(usize, &PolarScan),
+) -> Result<RoomRun> {
     // with `icp` the fusion only ever sees the rough poses, then the calibrated ones
     let start_poses: Vec<Pose2> = match cfg.calibration {
         Calibration::Given => sc.scanners.iter().map(|s| s.pose).collect(),
@@ -270,5 +286,6 @@ pub fn run_room_default_until(
         tracker,
         progress,
         stop,
+        on_scan,
     )
 }

@@ -1,0 +1,223 @@
+//! `--mcap` recordings read back by tools nobody here wrote: the Python `mcap` reader with
+//! `mcap-ros2-support` decodes every message, and the decoded tracks equal the run's CSV /
+//! MOTChallenge output. The venv is quarry_testkit::python's (`ros2`, pinned in
+//! crates/quarry-ros2/tests/python/requirements.txt).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use quarry_testkit::python::{PythonEnv, venv_or_skip};
+use serde_json::Value;
+
+fn python() -> Option<PythonEnv> {
+    let reqs =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../quarry-ros2/tests/python/requirements.txt");
+    venv_or_skip(Path::new(env!("CARGO_TARGET_TMPDIR")), "ros2", &reqs)
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("mcap-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn quarry(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_quarry"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+fn read_back(py: &PythonEnv, mcap: &Path) -> Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/read_mcap.py");
+    let out = py.command().arg(script).arg(mcap).output().unwrap();
+    assert!(
+        out.status.success(),
+        "read_mcap.py {}: {}",
+        mcap.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let p = std::env::var_os("QUARRY_SHARED").map_or_else(
+        || PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared")),
+        PathBuf::from,
+    );
+    let d = p.join("data");
+    if d.exists() {
+        Some(d)
+    } else {
+        eprintln!("skipping the recorded-data part: no {}", d.display());
+        None
+    }
+}
+
+/// `tracks.csv` rows as (t_ns, id) → (x, y).
+fn csv_tracks(path: &Path) -> BTreeMap<(u64, u64), (f64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut m = BTreeMap::new();
+    for l in text.lines().skip(1) {
+        let c: Vec<&str> = l.split(',').collect();
+        let t_ns = c[1].parse::<u64>().unwrap() * 1000;
+        m.insert(
+            (t_ns, c[2].parse().unwrap()),
+            (c[3].parse().unwrap(), c[4].parse().unwrap()),
+        );
+    }
+    m
+}
+
+/// Every decoded `/tracks` row equals a CSV row (positions to the CSV's 4 decimals) and the
+/// counts agree.
+fn assert_tracks_equal(decoded: &Value, csv: &BTreeMap<(u64, u64), (f64, f64)>) {
+    let rows = decoded["tracks"].as_array().unwrap();
+    assert_eq!(
+        rows.len(),
+        csv.len(),
+        "decoded track rows vs tracks.csv rows"
+    );
+    assert!(!rows.is_empty(), "the run produced no tracks to compare");
+    for r in rows {
+        let key = (r[0].as_u64().unwrap(), r[1].as_u64().unwrap());
+        let (x, y) = csv
+            .get(&key)
+            .unwrap_or_else(|| panic!("track {key:?} of the MCAP is not in tracks.csv"));
+        assert!((r[2].as_f64().unwrap() - x).abs() <= 5.1e-5, "{key:?} x");
+        assert!((r[3].as_f64().unwrap() - y).abs() <= 5.1e-5, "{key:?} y");
+    }
+}
+
+fn assert_every_message_decoded(v: &Value) {
+    assert_eq!(v["profile"], "ros2");
+    let total: u64 = v["topics"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|t| {
+            assert_eq!(t["schema_encoding"], "ros2msg");
+            assert_eq!(t["message_encoding"], "cdr");
+            t["count"].as_u64().unwrap()
+        })
+        .sum();
+    assert_eq!(v["decoded"].as_u64().unwrap(), total);
+}
+
+#[test]
+fn lidar_sim_recording_decodes_in_python_and_equals_the_csv() {
+    let Some(py) = python() else { return };
+    let d = tmpdir("lidar-sim");
+    let (file, out) = (d.join("run.mcap"), d.join("out"));
+    let (code, stdout, err) = quarry(&[
+        "lidar",
+        "--frames",
+        "200",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let summary: Value = serde_json::from_str(&stdout).unwrap();
+    let v = read_back(&py, &file);
+    assert_every_message_decoded(&v);
+    assert_eq!(summary["mcap"]["messages"], v["decoded"]);
+    for topic in [
+        "/tf_static",
+        "/tracks",
+        "/tracks/markers",
+        "/ground_truth/people",
+    ] {
+        assert!(
+            v["topics"][topic]["count"].as_u64().unwrap() >= 1,
+            "{topic}"
+        );
+    }
+    assert_eq!(
+        v["topics"]["/tracks"]["schema"],
+        "quarry_msgs/msg/TrackArray"
+    );
+    assert_eq!(
+        v["topics"]["/tracks/markers"]["schema"],
+        "visualization_msgs/msg/MarkerArray"
+    );
+    // three scanners, 1081 beams each, about 40 scans per simulated second
+    let scans = v["scans"].as_object().unwrap();
+    assert_eq!(scans.len(), 3);
+    for s in scans.values() {
+        assert_eq!(s["beams"], 1081);
+        assert!(s["count"].as_u64().unwrap() > 400);
+    }
+    assert_tracks_equal(&v, &csv_tracks(&out.join("tracks.csv")));
+    // the MOTChallenge rows are the same tracks: one line per decoded track row
+    let mot = std::fs::read_to_string(out.join("tracks_mot.txt")).unwrap();
+    assert_eq!(mot.lines().count(), v["tracks"].as_array().unwrap().len());
+}
+
+#[test]
+fn lidar_recorded_scans_recording_holds_every_scan_and_the_tracks() {
+    let Some(py) = python() else { return };
+    let Some(data) = shared_data() else { return };
+    let lt = data.join("leg-tracker");
+    let d = tmpdir("lidar-scans");
+    let (file, out) = (d.join("p1.mcap"), d.join("out"));
+    let (code, stdout, err) = quarry(&[
+        "lidar",
+        "--scans",
+        lt.join("positive_1_scans.csv").to_str().unwrap(),
+        "--legs",
+        lt.join("positive_1_legs.csv").to_str().unwrap(),
+        "--detector",
+        "legs",
+        "--preset",
+        "jipda",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let summary: Value = serde_json::from_str(&stdout).unwrap();
+    let v = read_back(&py, &file);
+    assert_every_message_decoded(&v);
+    // every scan read is recorded, with the recording's own beam count
+    assert_eq!(v["scans"]["/scan"]["beams"], summary["n_beams"]);
+    assert_eq!(
+        v["scans"]["/scan"]["count"].as_u64().unwrap(),
+        summary["frames"].as_u64().unwrap()
+    );
+    assert_eq!(
+        v["topics"]["/ground_truth/person"]["count"]
+            .as_u64()
+            .unwrap(),
+        summary["labelled"]["labelled"].as_u64().unwrap()
+    );
+    assert_tracks_equal(&v, &csv_tracks(&out.join("tracks.csv")));
+}
+
+#[test]
+fn mcap_flag_errors_name_the_path() {
+    let d = tmpdir("errors");
+    // an unwritable place: a file below a regular file
+    let blocker = d.join("file");
+    std::fs::write(&blocker, "x").unwrap();
+    let bad = blocker.join("run.mcap");
+    let (code, _, err) = quarry(&["lidar", "--frames", "20", "--mcap", bad.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--mcap") && err.contains("run.mcap"), "{err}");
+    // a directory
+    let (code, _, err) = quarry(&["lidar", "--frames", "20", "--mcap", d.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("is a directory"), "{err}");
+}
