@@ -66,6 +66,17 @@ impl Mcap {
             .map_err(|e| format!("--mcap {}: {e}", self.path.display()).into())
     }
 
+    /// Writes a metadata record `name` (e.g. `quarry` with the run's seed and time origin).
+    pub fn metadata(&mut self, name: &str, entries: &[(&str, String)]) -> Result<(), CmdError> {
+        let map = entries
+            .iter()
+            .map(|(k, v)| ((*k).to_string(), v.clone()))
+            .collect();
+        self.rec
+            .metadata(name, map)
+            .map_err(|e| format!("--mcap {}: {e}", self.path.display()).into())
+    }
+
     /// Closes the file (summary, footer).
     pub fn finish(self) -> Result<McapInfo, CmdError> {
         let s = self
@@ -231,4 +242,113 @@ impl WithZ for Pose {
         self.position.z = z;
         self
     }
+}
+
+/// One SLAM + tracking run as the recording sees it (times in seconds from the run's start).
+#[derive(Debug, Default)]
+pub struct SlamotRecording {
+    /// Odometry per control step: (t, v, ω).
+    pub odometry: Vec<(f64, f64, f64)>,
+    /// Per epoch: (t, estimated pose, true pose if known).
+    pub poses: Vec<(f64, Pose2, Option<Pose2>)>,
+    /// Per epoch: (t, tracks).
+    pub targets: Vec<(f64, Vec<PlanarTrack>)>,
+    /// Per epoch: (t, true target positions with their ids).
+    pub targets_truth: Vec<(f64, Vec<PlanarTrack>)>,
+    /// The final map: (landmark id, position).
+    pub map: Vec<(u32, [f64; 2])>,
+    /// The true landmarks, if known.
+    pub landmarks_truth: Vec<(u32, [f64; 2])>,
+}
+
+fn secs(t: f64) -> TimeUs {
+    TimeUs::from_secs_f64(t)
+}
+
+fn landmark_markers(t: TimeUs, ns: &str, lm: &[(u32, [f64; 2])], c: ColorRGBA) -> MarkerArray {
+    let header = Header::new(time(t), "map");
+    MarkerArray {
+        markers: lm
+            .iter()
+            .map(|(id, p)| Marker {
+                header: header.clone(),
+                ns: ns.into(),
+                id: *id as i32,
+                r#type: Marker::CYLINDER,
+                action: Marker::ADD,
+                pose: Pose::planar(p[0], p[1], 0.0),
+                scale: Vector3 {
+                    x: 0.15,
+                    y: 0.15,
+                    z: 0.3,
+                },
+                color: c.clone(),
+                ..Marker::default()
+            })
+            .collect(),
+    }
+}
+
+/// Writes a SLAM + tracking run: `/odom` (TwistStamped per control step, the input),
+/// `/pose/estimate` and `/ground_truth/pose` (PoseStamped per epoch), `/tf` (map → base_link,
+/// the estimate), `/targets` and `/ground_truth/targets` (TrackArray per epoch), and at the last
+/// epoch `/map/landmarks` and `/ground_truth/landmarks` (MarkerArray, id = landmark id).
+pub fn record_slamot(mut m: Mcap, r: &SlamotRecording) -> Result<McapInfo, CmdError> {
+    use quarry_ros2::msgs::{PoseStamped, TwistStamped};
+    for &(t, v, w) in &r.odometry {
+        m.write(
+            "/odom",
+            secs(t),
+            &TwistStamped::planar(time(secs(t)), "base_link", v, w),
+        )?;
+    }
+    for (t, est, truth) in &r.poses {
+        let ts = secs(*t);
+        let pose = |p: &Pose2| PoseStamped {
+            header: Header::new(time(ts), "map"),
+            pose: Pose::planar(p.x, p.y, p.theta),
+        };
+        m.write("/pose/estimate", ts, &pose(est))?;
+        if let Some(g) = truth {
+            m.write("/ground_truth/pose", ts, &pose(g))?;
+        }
+        let tf = static_tf(ts, "map", &[("base_link".to_string(), *est)]);
+        m.write("/tf", ts, &tf)?;
+    }
+    for (t, tr) in &r.targets {
+        m.write("/targets", secs(*t), &tracks_msg(secs(*t), "map", tr))?;
+    }
+    for (t, tr) in &r.targets_truth {
+        m.write(
+            "/ground_truth/targets",
+            secs(*t),
+            &tracks_msg(secs(*t), "map", tr),
+        )?;
+    }
+    let end = secs(r.poses.last().map_or(0.0, |p| p.0));
+    let est = ColorRGBA {
+        r: 0.9,
+        g: 0.1,
+        b: 0.1,
+        a: 1.0,
+    };
+    let truth = ColorRGBA {
+        r: 0.2,
+        g: 0.2,
+        b: 0.2,
+        a: 0.6,
+    };
+    m.write(
+        "/map/landmarks",
+        end,
+        &landmark_markers(end, "landmarks", &r.map, est),
+    )?;
+    if !r.landmarks_truth.is_empty() {
+        m.write(
+            "/ground_truth/landmarks",
+            end,
+            &landmark_markers(end, "landmarks_truth", &r.landmarks_truth, truth),
+        )?;
+    }
+    m.finish()
 }

@@ -80,7 +80,7 @@ fn csv_tracks(path: &Path) -> BTreeMap<(u64, u64), (f64, f64)> {
 /// Every decoded `/tracks` row equals a CSV row (positions to the CSV's 4 decimals) and the
 /// counts agree.
 fn assert_tracks_equal(decoded: &Value, csv: &BTreeMap<(u64, u64), (f64, f64)>) {
-    let rows = decoded["tracks"].as_array().unwrap();
+    let rows = decoded["tracks"]["/tracks"].as_array().unwrap();
     assert_eq!(
         rows.len(),
         csv.len(),
@@ -161,7 +161,10 @@ fn lidar_sim_recording_decodes_in_python_and_equals_the_csv() {
     assert_tracks_equal(&v, &csv_tracks(&out.join("tracks.csv")));
     // the MOTChallenge rows are the same tracks: one line per decoded track row
     let mot = std::fs::read_to_string(out.join("tracks_mot.txt")).unwrap();
-    assert_eq!(mot.lines().count(), v["tracks"].as_array().unwrap().len());
+    assert_eq!(
+        mot.lines().count(),
+        v["tracks"]["/tracks"].as_array().unwrap().len()
+    );
 }
 
 #[test]
@@ -220,4 +223,133 @@ fn mcap_flag_errors_name_the_path() {
     let (code, _, err) = quarry(&["lidar", "--frames", "20", "--mcap", d.to_str().unwrap()]);
     assert_ne!(code, 0);
     assert!(err.contains("is a directory"), "{err}");
+}
+
+/// Rows of a CSV with a header, as column name → values.
+fn csv_columns(path: &Path) -> BTreeMap<String, Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let names: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let mut cols: BTreeMap<String, Vec<f64>> = names.iter().map(|n| (n.clone(), vec![])).collect();
+    for l in lines {
+        for (n, v) in names.iter().zip(l.split(',')) {
+            cols.get_mut(n).unwrap().push(v.parse().unwrap_or(f64::NAN));
+        }
+    }
+    cols
+}
+
+#[test]
+fn slamot_sim_recording_decodes_and_equals_the_trajectory_and_map_csvs() {
+    let Some(py) = python() else { return };
+    let d = tmpdir("slamot-sim");
+    let (file, out) = (d.join("run.mcap"), d.join("out"));
+    let (code, _, err) = quarry(&[
+        "slamot",
+        "--particles",
+        "20",
+        "--runs",
+        "1",
+        "--seed",
+        "4",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v = read_back(&py, &file);
+    assert_every_message_decoded(&v);
+    let cols = csv_columns(&out.join("trajectories_run4.csv"));
+    let t = &cols["t"];
+    // the estimated pose per epoch
+    let est = v["poses"]["/pose/estimate"].as_array().unwrap();
+    assert_eq!(est.len(), t.len());
+    for (k, p) in est.iter().enumerate() {
+        assert!(
+            (p[0].as_f64().unwrap() * 1e-9 - t[k]).abs() < 1.1e-3,
+            "epoch {k} time"
+        );
+        assert!((p[1].as_f64().unwrap() - cols["est_x"][k]).abs() < 1e-4);
+        assert!((p[2].as_f64().unwrap() - cols["est_y"][k]).abs() < 1e-4);
+        assert!((p[3].as_f64().unwrap() - cols["est_theta"][k]).abs() < 1e-4);
+    }
+    // the targets: one row per epoch per target slot, equal to the CSV's estimate columns
+    let rows = v["tracks"]["/targets"].as_array().unwrap();
+    let n_targets = cols.keys().filter(|k| k.ends_with("_est_x")).count();
+    assert!(n_targets >= 1);
+    assert_eq!(rows.len(), t.len() * n_targets);
+    for (i, r) in rows.iter().enumerate() {
+        let (k, l) = (i / n_targets, r[1].as_u64().unwrap() as usize);
+        let x = cols[&format!("t{l}_est_x")][k];
+        let y = cols[&format!("t{l}_est_y")][k];
+        assert!(
+            (r[2].as_f64().unwrap() - x).abs() < 1e-4 && (r[3].as_f64().unwrap() - y).abs() < 1e-4
+        );
+    }
+    // the map: the CSV's landmarks, by id
+    let map = csv_columns(&out.join("map_run4.csv"));
+    let lm = v["markers"]["/map/landmarks"].as_array().unwrap();
+    assert_eq!(lm.len(), map["landmark"].len());
+    for m in lm {
+        let i = map["landmark"]
+            .iter()
+            .position(|&id| id == m[0].as_f64().unwrap())
+            .unwrap();
+        assert!((m[1].as_f64().unwrap() - map["x"][i]).abs() < 1e-4);
+        assert!((m[2].as_f64().unwrap() - map["y"][i]).abs() < 1e-4);
+    }
+    assert!(v["topics"]["/odom"]["count"].as_u64().unwrap() >= t.len() as u64);
+    assert!(
+        v["topics"]["/ground_truth/targets"]["count"]
+            .as_u64()
+            .unwrap()
+            >= 1
+    );
+}
+
+#[test]
+fn slamot_mrclam_recording_holds_the_tracks_of_the_csv() {
+    let Some(py) = python() else { return };
+    let Some(data) = shared_data() else { return };
+    let d = tmpdir("slamot-mrclam");
+    let (file, out) = (d.join("r3.mcap"), d.join("out"));
+    let (code, _, err) = quarry(&[
+        "slamot",
+        "--mrclam",
+        data.join("mrclam-6").to_str().unwrap(),
+        "--robot",
+        "3",
+        "--particles",
+        "20",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v = read_back(&py, &file);
+    assert_every_message_decoded(&v);
+    let tracks = csv_columns(&out.join("mrclam_robot3_tracks.csv"));
+    let rows = v["tracks"]["/targets"].as_array().unwrap();
+    assert_eq!(rows.len(), tracks["t"].len());
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!(r[1].as_f64().unwrap(), tracks["track"][i]);
+        assert!((r[2].as_f64().unwrap() - tracks["x"][i]).abs() < 1e-4);
+        assert!((r[3].as_f64().unwrap() - tracks["y"][i]).abs() < 1e-4);
+    }
+    let traj = csv_columns(&out.join("mrclam_robot3_trajectory.csv"));
+    assert_eq!(
+        v["poses"]["/ground_truth/pose"].as_array().unwrap().len(),
+        traj["t"].len()
+    );
+    assert!(
+        v["markers"]["/ground_truth/landmarks"]
+            .as_array()
+            .unwrap()
+            .len()
+            >= 10
+    );
 }

@@ -288,6 +288,49 @@ ros_msg! {
 }
 
 ros_msg! {
+    /// `geometry_msgs/msg/Twist`: linear and angular velocity.
+    #[derive(Default)]
+    pub struct Twist = "geometry_msgs/msg/Twist" {
+        /// Linear velocity (m/s).
+        pub linear: Vector3,
+        /// Angular velocity (rad/s).
+        pub angular: Vector3,
+    }
+}
+
+ros_msg! {
+    /// `geometry_msgs/msg/TwistStamped`: e.g. a robot's odometry command (v along x, ω about z).
+    #[derive(Default)]
+    pub struct TwistStamped = "geometry_msgs/msg/TwistStamped" {
+        /// Stamp and frame (quarry: `base_link`).
+        pub header: Header,
+        /// The velocity.
+        pub twist: Twist,
+    }
+}
+
+impl TwistStamped {
+    /// A planar velocity command: `v` forward, `omega` about z.
+    pub fn planar(stamp: Time, frame: &str, v: f64, omega: f64) -> Self {
+        Self {
+            header: Header::new(stamp, frame),
+            twist: Twist {
+                linear: Vector3 {
+                    x: v,
+                    y: 0.0,
+                    z: 0.0,
+                },
+                angular: Vector3 {
+                    x: 0.0,
+                    y: 0.0,
+                    z: omega,
+                },
+            },
+        }
+    }
+}
+
+ros_msg! {
     /// `geometry_msgs/msg/Transform`.
     #[derive(Default)]
     pub struct Transform = "geometry_msgs/msg/Transform" {

@@ -188,6 +188,12 @@ fn samples() -> Vec<(&'static str, String, String, Vec<u8>)> {
         one(&tf()),
         one(&pose_stamped()),
         one(&pose_array()),
+        one(&TwistStamped::planar(
+            Time::from_nanos(11),
+            "base_link",
+            0.3,
+            -0.1,
+        )),
         one(&ci),
         one(&im),
         one(&StdString { data: "odd".into() }),

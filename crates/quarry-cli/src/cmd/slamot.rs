@@ -18,6 +18,8 @@ use serde::Serialize;
 use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, Table};
 use crate::progress;
+use crate::record::{self, Mcap, PlanarTrack, SlamotRecording};
+use quarry_core::Pose2;
 
 /// What `quarry slamot` refuses before running anything.
 #[derive(Debug)]
@@ -188,6 +190,13 @@ pub struct SlamotArgs {
     /// to measure the difference).
     #[arg(long, value_enum, default_value_t = TimingArg::Own)]
     pub timing: TimingArg,
+    /// Record the run as MCAP (ROS 2 messages, CDR; docs/ros2.md): odometry (`/odom`), the
+    /// estimated and true poses, `/tf`, the target tracks (`/targets`), the map and the ground
+    /// truth. With several --runs, the median run by robot error (the one --out plots). Stamps
+    /// count from the run's start; the metadata record `quarry` holds the seed (and, for MRCLAM,
+    /// the recording's start time).
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
 }
 
 /// MRCLAM measurement timing on the command line.
@@ -487,6 +496,7 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
         return run_mrclam_cmd(args, base, dir, out);
     }
     let (cfg, scen) = sim_config(base, args.particles, args.mode, args.scenario, args.eq11)?;
+    let mut mcap = Mcap::open(args.mcap.as_ref())?;
     crate::interrupt::install();
     let pb = progress::bar(out, args.runs, "slamot");
     let mut results = Vec::new();
@@ -508,7 +518,7 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
     }
     pb.finish_and_clear();
     let per_run: Vec<RunSummary> = results.iter().map(|(r, x)| summarise(*r, x)).collect();
-    if let Some(dir) = &args.out {
+    if (args.out.is_some() || mcap.is_some()) && !results.is_empty() {
         // the median run by robot error is the figure run (spec §4.3 E1)
         let mut idx: Vec<usize> = (0..per_run.len()).collect();
         idx.sort_by(|a, b| {
@@ -518,7 +528,19 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
         });
         let med = idx[idx.len() / 2];
         let frames = quarry_sim::slamot::simulate(&scen, results[med].0)?;
-        plot_fig1(&dir.join("fig1.png"), &scen, &results[med].1, &frames)?;
+        if let Some(dir) = &args.out {
+            plot_fig1(&dir.join("fig1.png"), &scen, &results[med].1, &frames)?;
+        }
+        if let Some(mut m) = mcap.take() {
+            m.metadata(
+                "quarry",
+                &[
+                    ("command", "slamot".into()),
+                    ("seed", results[med].0.to_string()),
+                ],
+            )?;
+            record::record_slamot(m, &sim_recording(&scen, &results[med].1, &frames))?;
+        }
     }
     let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
     let report = Report {
@@ -982,6 +1004,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     let mut cfg = overrides(base, args.particles, None, args.eq11)?;
     cfg.association = AssociationMode::Jipda;
     cfg.validate()?;
+    let mcap = Mcap::open(args.mcap.as_ref())?;
     if let Some(d) = &args.out {
         std::fs::create_dir_all(d).map_err(io_err(d))?;
     }
@@ -1041,6 +1064,18 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     order.sort_by(|a, b| scores[*a].robot_err.total_cmp(&scores[*b].robot_err));
     if let (Some(d), Some(&med)) = (&args.out, order.get(order.len() / 2)) {
         write_mrclam_outputs(d, args.robot, &run, &results[med], scores[med].seed)?;
+    }
+    if let (Some(mut m), Some(&med)) = (mcap, order.get(order.len() / 2)) {
+        m.metadata(
+            "quarry",
+            &[
+                ("command", "slamot --mrclam".into()),
+                ("robot", args.robot.to_string()),
+                ("seed", scores[med].seed.to_string()),
+                ("t0_unix_s", format!("{:.3}", run.t0)),
+            ],
+        )?;
+        record::record_slamot(m, &mrclam_recording(&run, &results[med]))?;
     }
     let nt = per_run.first().map_or(0, |r| r.target_err_mean.len());
     let mrclam = MrclamReport {
@@ -1139,6 +1174,112 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         return Err(Box::new(crate::interrupt::Interrupted));
     }
     Ok(())
+}
+
+fn pose_of(p: [f64; 3]) -> Pose2 {
+    Pose2 {
+        x: p[0],
+        y: p[1],
+        theta: p[2],
+    }
+}
+
+/// A simulated run as a recording (target ids = slots; landmark ids as in the map).
+fn sim_recording(
+    scen: &quarry_sim::slamot::SlamotScenarioConfig,
+    res: &SimRunResult,
+    frames: &[quarry_sim::slamot::SlamotFrame],
+) -> SlamotRecording {
+    let epochs = 0..res.epoch_t.len();
+    let slot = |v: &Vec<Vec<[f64; 2]>>, k: usize| -> Vec<PlanarTrack> {
+        v.iter()
+            .enumerate()
+            .map(|(l, s)| PlanarTrack::at(l as u32, s[k][0], s[k][1], 0.0, 0.0))
+            .collect()
+    };
+    SlamotRecording {
+        odometry: frames
+            .iter()
+            .map(|f| (f.t, f.odometry.0, f.odometry.1))
+            .collect(),
+        poses: epochs
+            .clone()
+            .map(|k| {
+                (
+                    res.epoch_t[k],
+                    pose_of(res.robot_est[k]),
+                    Some(pose_of(res.robot_true[k])),
+                )
+            })
+            .collect(),
+        targets: epochs
+            .clone()
+            .map(|k| (res.epoch_t[k], slot(&res.target_est, k)))
+            .collect(),
+        targets_truth: epochs
+            .map(|k| (res.epoch_t[k], slot(&res.target_true, k)))
+            .collect(),
+        map: res.map.iter().map(|(id, p)| (id.0, *p)).collect(),
+        landmarks_truth: scen
+            .landmarks
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (i as u32, *p))
+            .collect(),
+    }
+}
+
+/// An MRCLAM run as a recording (target ids = track slots, truth ids = subject numbers of the
+/// robots; landmark ids = subject numbers, as in the CSVs).
+fn mrclam_recording(
+    run: &quarry_data::mrclam::MrclamRun,
+    res: &quarry_repro::slamot::MrclamResult,
+) -> SlamotRecording {
+    let mut targets: Vec<(f64, Vec<PlanarTrack>)> = Vec::new();
+    for r in &res.tracks {
+        let p = PlanarTrack {
+            existence: r.existence,
+            ..PlanarTrack::at(r.id.0, r.state[0], r.state[1], r.state[2], r.state[3])
+        };
+        match targets.last_mut() {
+            Some((t, v)) if *t == r.t => v.push(p),
+            _ => targets.push((r.t, vec![p])),
+        }
+    }
+    SlamotRecording {
+        odometry: run
+            .frames
+            .iter()
+            .map(|f| (f.t, f.odometry.0, f.odometry.1))
+            .collect(),
+        poses: (0..res.epoch_t.len())
+            .map(|k| {
+                (
+                    res.epoch_t[k],
+                    pose_of(res.robot_est[k]),
+                    Some(pose_of(res.robot_true[k])),
+                )
+            })
+            .collect(),
+        targets,
+        targets_truth: run
+            .frames
+            .iter()
+            .filter(|f| f.observe)
+            .map(|f| {
+                let v = f
+                    .truth
+                    .targets
+                    .iter()
+                    .zip(&run.target_robots)
+                    .filter_map(|(p, id)| p.map(|p| PlanarTrack::at(*id, p[0], p[1], 0.0, 0.0)))
+                    .collect();
+                (f.t, v)
+            })
+            .collect(),
+        map: res.map.iter().map(|(id, p)| (id.0 + 6, *p)).collect(),
+        landmarks_truth: run.landmarks.iter().map(|(id, p)| (id.0 + 6, *p)).collect(),
+    }
 }
 
 /// Writes the trajectory, map, tracks and per-epoch diagnostics as CSV, and the plot.

@@ -3,7 +3,9 @@ nobody at quarry wrote) and prints what it decoded as one JSON object:
 
 - profile, and per topic: schema name, schema encoding, message encoding, message count;
 - `decoded`: messages decoded (every message is decoded; an undecodable one raises);
-- `tracks`: per TrackArray message on /tracks, [log_time_ns, id, x, y] rows;
+- `tracks`: per `quarry_msgs/msg/TrackArray` topic, [log_time_ns, id, x, y] rows;
+- `markers`: per MarkerArray topic, the [id, x, y] rows of its last message (DELETEALL skipped);
+- `poses`: per PoseStamped topic, [log_time_ns, x, y, yaw] rows;
 - `detections`: per Detection2DArray on /detections, [log_time_ns, id, x, y, w, h] rows
   (top-left corner from the box centre);
 - `scans`: per LaserScan topic, the number of beams of the first message and the message count.
@@ -20,7 +22,8 @@ from mcap_ros2.decoder import DecoderFactory
 
 def main():
     path = sys.argv[1]
-    out = {"topics": {}, "decoded": 0, "tracks": [], "detections": [], "scans": {}}
+    out = {"topics": {}, "decoded": 0, "tracks": {}, "markers": {}, "poses": {},
+           "detections": [], "scans": {}}
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         header = reader.get_header()
@@ -37,9 +40,19 @@ def main():
         for schema, channel, message, msg in reader.iter_decoded_messages():
             out["decoded"] += 1
             t = message.log_time
-            if channel.topic == "/tracks":
+            if schema.name == "quarry_msgs/msg/TrackArray":
+                rows = out["tracks"].setdefault(channel.topic, [])
                 for tr in msg.tracks:
-                    out["tracks"].append([t, tr.id, tr.x, tr.y])
+                    rows.append([t, tr.id, tr.x, tr.y])
+            elif schema.name == "visualization_msgs/msg/MarkerArray":
+                out["markers"][channel.topic] = [
+                    [m.id, m.pose.position.x, m.pose.position.y]
+                    for m in msg.markers if m.action != 3 and m.type != 9]
+            elif schema.name == "geometry_msgs/msg/PoseStamped":
+                q = msg.pose.orientation
+                out["poses"].setdefault(channel.topic, []).append(
+                    [t, msg.pose.position.x, msg.pose.position.y,
+                     2.0 * math.atan2(q.z, q.w)])
             elif channel.topic == "/detections":
                 for d in msg.detections:
                     c = d.bbox.center.position
