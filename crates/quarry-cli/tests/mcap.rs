@@ -353,3 +353,83 @@ fn slamot_mrclam_recording_holds_the_tracks_of_the_csv() {
             >= 10
     );
 }
+
+/// MOTChallenge rows `frame,id,l,t,w,h,...` as (frame, id) → box.
+fn mot_rows(path: &Path) -> BTreeMap<(u64, String), [f64; 4]> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            let f = |i: usize| c[i].trim().parse::<f64>().unwrap();
+            (
+                (c[0].trim().parse().unwrap(), c[1].trim().to_string()),
+                [f(2), f(3), f(4), f(5)],
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn video_recording_on_pets_decodes_and_equals_the_motchallenge_output() {
+    let Some(py) = python() else { return };
+    let Some(data) = shared_data() else { return };
+    let pets = data.join("pets09-s2l1");
+    let d = tmpdir("video");
+    let (file, out) = (d.join("pets.mcap"), d.join("out"));
+    let (code, stdout, err) = quarry(&[
+        "--json",
+        "video",
+        "--frames",
+        pets.join("img1").to_str().unwrap(),
+        "--gt",
+        pets.join("gt.txt").to_str().unwrap(),
+        "--range",
+        "1..12",
+        "--person-size",
+        "32x84",
+        "--profile",
+        "robust",
+        "--no-images",
+        "--fps",
+        "7",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let summary: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let v = read_back(&py, &file);
+    assert_every_message_decoded(&v);
+    assert_eq!(v["topics"]["/image"]["count"], 12);
+    assert_eq!(
+        v["topics"]["/image"]["schema"],
+        "sensor_msgs/msg/CompressedImage"
+    );
+    assert_eq!(v["topics"]["/ground_truth/detections"]["count"], 12);
+    let mot = mot_rows(Path::new(summary["results"].as_str().unwrap()));
+    let det = v["detections"].as_array().unwrap();
+    assert!(!det.is_empty(), "no tracks in 12 PETS frames");
+    assert_eq!(det.len(), mot.len(), "one decoded box per MOT row");
+    let ours: Vec<&Value> = det
+        .iter()
+        .filter(|r| {
+            let frame = (r[0].as_f64().unwrap() * 1e-9 * 7.0).round() as u64 + 1;
+            mot.contains_key(&(frame, r[1].as_str().unwrap().to_string()))
+        })
+        .collect();
+    assert_eq!(ours.len(), mot.len(), "every MOT row is in the MCAP");
+    for r in ours {
+        let frame = (r[0].as_f64().unwrap() * 1e-9 * 7.0).round() as u64 + 1;
+        let b = mot[&(frame, r[1].as_str().unwrap().to_string())];
+        for (i, want) in b.iter().enumerate() {
+            // the MCAP box is 0-based, the MOT file 1-based
+            let got = r[2 + i].as_f64().unwrap() + if i < 2 { 1.0 } else { 0.0 };
+            assert!(
+                (got - want).abs() < 1e-2,
+                "frame {frame} box {i}: {got} vs {want}"
+            );
+        }
+    }
+}

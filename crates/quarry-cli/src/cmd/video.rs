@@ -92,6 +92,84 @@ pub struct VideoArgs {
     /// Do not write annotated frames.
     #[arg(long)]
     pub no_images: bool,
+    /// Record the run as MCAP (ROS 2 messages, CDR; docs/ros2.md): the frames (`/image`,
+    /// sensor_msgs/CompressedImage, PNG), the tracks (`/detections`, vision_msgs/Detection2DArray,
+    /// track id in `id`) and with --gt the ground truth (`/ground_truth/detections`).
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
+    /// Frame rate for the recording's stamps (frame k at (k - 1) / fps seconds; PETS09 is 7).
+    #[arg(long, default_value_t = 25.0)]
+    pub fps: f64,
+}
+
+/// The stamp of 1-based frame `k` at `fps`.
+fn frame_time(k: u64, fps: f64) -> quarry_core::TimeUs {
+    quarry_core::TimeUs::from_secs_f64((k.saturating_sub(1)) as f64 / fps)
+}
+
+/// MOT boxes (1-based left/top) as a Detection2DArray in pixel coordinates (0-based centre).
+fn detections_msg(
+    t: quarry_core::TimeUs,
+    boxes: impl Iterator<Item = (i64, [f64; 4])>,
+) -> quarry_ros2::msgs::Detection2DArray {
+    use quarry_ros2::msgs::{
+        BoundingBox2D, Detection2D, Detection2DArray, Header, ObjectHypothesis,
+        ObjectHypothesisWithPose, Point2D, Pose2D,
+    };
+    let header = Header::new(crate::record::time(t), "camera");
+    Detection2DArray {
+        header: header.clone(),
+        detections: boxes
+            .map(|(id, b)| Detection2D {
+                header: header.clone(),
+                results: vec![ObjectHypothesisWithPose {
+                    hypothesis: ObjectHypothesis {
+                        class_id: "person".into(),
+                        score: 1.0,
+                    },
+                    ..ObjectHypothesisWithPose::default()
+                }],
+                bbox: BoundingBox2D {
+                    center: Pose2D {
+                        position: Point2D {
+                            x: b[0] - 1.0 + 0.5 * b[2],
+                            y: b[1] - 1.0 + 0.5 * b[3],
+                        },
+                        theta: 0.0,
+                    },
+                    size_x: b[2],
+                    size_y: b[3],
+                },
+                id: id.to_string(),
+            })
+            .collect(),
+    }
+}
+
+/// A grey frame as a PNG CompressedImage (fast compression).
+fn png_msg(
+    t: quarry_core::TimeUs,
+    grey: &Plane<u8>,
+) -> Result<quarry_ros2::msgs::CompressedImage, String> {
+    use image::ImageEncoder;
+    let mut data = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut data,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    )
+    .write_image(
+        &grey.data,
+        grey.width,
+        grey.height,
+        image::ExtendedColorType::L8,
+    )
+    .map_err(|e| format!("PNG encoding for --mcap: {e}"))?;
+    Ok(quarry_ros2::msgs::CompressedImage {
+        header: quarry_ros2::msgs::Header::new(crate::record::time(t), "camera"),
+        format: "png".into(),
+        data,
+    })
 }
 
 /// Mean stage times per frame, milliseconds.
@@ -116,6 +194,8 @@ struct VideoJson {
     stages_ms: StagesMs,
     config: WatershedSiftConfig,
     metrics: Option<EvalReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mcap: Option<crate::record::McapInfo>,
 }
 
 /// Parses `WxH`.
@@ -255,6 +335,10 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
     let font = FontRef::try_from_slice(crate::fonts::DEJAVU_SANS_MONO)
         .map_err(|e| format!("bundled font: {e}"))?;
 
+    if !(args.fps.is_finite() && args.fps > 0.0 && args.fps <= 1000.0) {
+        return Err(format!("--fps {}: must be in (0, 1000]", args.fps).into());
+    }
+    let mut mcap = crate::record::Mcap::open(args.mcap.as_ref())?;
     let mut tracker = WatershedSiftTracker::new(cfg.clone())?;
     let pb = progress::bar(out, (b - a + 1) as u64, "video");
     crate::interrupt::install();
@@ -312,6 +396,19 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
             drawn.push((row, r.status == TrackStatus::Occluded, pool));
             rows.push(row);
         }
+        if let Some(m) = mcap.as_mut() {
+            let t = frame_time(frame_no, args.fps);
+            m.write("/image", t, &png_msg(t, &grey)?)?;
+            let boxes = drawn.iter().map(|(r, _, _)| (r.id, r.bbox));
+            m.write("/detections", t, &detections_msg(t, boxes))?;
+            if let Some(gt) = &gt {
+                let g = gt
+                    .iter()
+                    .filter(|g| g.frame == frame_no)
+                    .map(|g| (g.id, g.bbox));
+                m.write("/ground_truth/detections", t, &detections_msg(t, g))?;
+            }
+        }
         if !args.no_images {
             let img = annotate(&grey, &drawn, &font);
             let p = frames_dir.join(format!("{frame_no:06}.png"));
@@ -321,6 +418,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    let mcap_info = mcap.map(crate::record::Mcap::finish).transpose()?;
     let res_path = args.out.join(format!("{name}.txt"));
     let f = std::fs::File::create(&res_path)
         .map_err(|e| format!("cannot write {}: {e}", res_path.display()))?;
@@ -361,6 +459,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         },
         config: cfg,
         metrics,
+        mcap: mcap_info,
     };
     out.emit(&json, || {
         let mut s = String::new();
@@ -380,6 +479,13 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
             json.stages_ms.track
         );
         let _ = writeln!(s, "results in {}", json.results);
+        if let Some(m) = &json.mcap {
+            let _ = writeln!(
+                s,
+                "recorded {} messages on {} topics to {}",
+                m.messages, m.topics, m.path
+            );
+        }
         if let Some(m) = &json.metrics {
             let mut t = Table::new(["MOTA", "MOTP", "IDF1", "HOTA", "IDSW", "FP", "FN"]);
             let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.3}"));

@@ -53,7 +53,7 @@ def main():
                 out["poses"].setdefault(channel.topic, []).append(
                     [t, msg.pose.position.x, msg.pose.position.y,
                      2.0 * math.atan2(q.z, q.w)])
-            elif channel.topic == "/detections":
+            elif channel.topic == "/detections":  # the tracker's, not the ground truth
                 for d in msg.detections:
                     c = d.bbox.center.position
                     w, h = d.bbox.size_x, d.bbox.size_y
