@@ -58,7 +58,7 @@ impl PythonEnv {
 static IN_PROCESS: Mutex<()> = Mutex::new(());
 
 /// How long a test waits for another process that is installing the same venv.
-const LOCK_WAIT: Duration = Duration::from_secs(30 * 60);
+const LOCK_WAIT: Duration = Duration::from_mins(30);
 
 /// Creates or reuses the venv `<dir>/pyenv-<name>` with `requirements` installed.
 ///
@@ -66,7 +66,9 @@ const LOCK_WAIT: Duration = Duration::from_secs(30 * 60);
 /// A message saying what failed: no interpreter, `venv` or `pip` failing (no registry access),
 /// an unreadable requirements file, or waiting on another installer for more than 30 minutes.
 pub fn venv(dir: &Path, name: &str, requirements: &Path) -> Result<PythonEnv, String> {
-    let _guard = IN_PROCESS.lock().unwrap_or_else(|e| e.into_inner());
+    let _guard = IN_PROCESS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let wanted = fs::read_to_string(requirements)
         .map_err(|e| format!("cannot read {}: {e}", requirements.display()))?;
     fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
