@@ -265,7 +265,7 @@ fn secs(t: f64) -> TimeUs {
     TimeUs::from_secs_f64(t)
 }
 
-fn landmark_markers(t: TimeUs, ns: &str, lm: &[(u32, [f64; 2])], c: ColorRGBA) -> MarkerArray {
+fn landmark_markers(t: TimeUs, ns: &str, lm: &[(u32, [f64; 2])], c: &ColorRGBA) -> MarkerArray {
     let header = Header::new(time(t), "map");
     MarkerArray {
         markers: lm
@@ -341,13 +341,13 @@ pub fn record_slamot(mut m: Mcap, r: &SlamotRecording) -> Result<McapInfo, CmdEr
     m.write(
         "/map/landmarks",
         end,
-        &landmark_markers(end, "landmarks", &r.map, est),
+        &landmark_markers(end, "landmarks", &r.map, &est),
     )?;
     if !r.landmarks_truth.is_empty() {
         m.write(
             "/ground_truth/landmarks",
             end,
-            &landmark_markers(end, "landmarks_truth", &r.landmarks_truth, truth),
+            &landmark_markers(end, "landmarks_truth", &r.landmarks_truth, &truth),
         )?;
     }
     m.finish()

@@ -169,16 +169,15 @@ impl McapRecorder {
             return Ok((*id, *seq));
         }
         check_topic(topic).map_err(RecordError::Topic)?;
-        let schema = match self.schemas.get(M::NAME) {
-            Some(s) => *s,
-            None => {
-                let s = self
-                    .writer
-                    .add_schema(M::NAME, "ros2msg", M::definition().as_bytes())
-                    .map_err(|e| self.mcap_err(&e))?;
-                self.schemas.insert(M::NAME, s);
-                s
-            }
+        let schema = if let Some(s) = self.schemas.get(M::NAME) {
+            *s
+        } else {
+            let s = self
+                .writer
+                .add_schema(M::NAME, "ros2msg", M::definition().as_bytes())
+                .map_err(|e| self.mcap_err(&e))?;
+            self.schemas.insert(M::NAME, s);
+            s
         };
         let id = self
             .writer

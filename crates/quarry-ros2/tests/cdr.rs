@@ -1,4 +1,5 @@
 //! CDR round trips, malformed input, type hashes, and the check against rosbags (Python).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::Path;
 
