@@ -421,7 +421,7 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
         .transpose()?;
     let clock = args.clock.as_deref().map(ClockProfile::parse).transpose()?;
     let mut mcap = Mcap::open(args.mcap.as_ref())?;
-    let (summary, run, window, sc) = if let Some(name) = &args.scenario {
+    let (scenario, band) = if let Some(name) = &args.scenario {
         let sc =
             Scenario::by_name(name, args.seed).map_err(|e| format!("--scenario {name}: {e}"))?;
         let band = match sc.people.first().map(|p| p.speed) {
@@ -430,30 +430,22 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
             Some(r) if r == SpeedBand::Fast.range() => "fast",
             _ => "-",
         };
-        run_sim_scenario(
-            sc,
-            band,
-            args.frames,
-            &cfg,
-            output,
-            network,
-            clock,
-            mcap.as_mut(),
-        )?
+        (sc, band)
     } else {
         let band = SpeedBand::parse(&args.band)?;
         let sc = band_scenario(band, args.people, args.frames, args.seed, &cfg);
-        run_sim_scenario(
-            sc,
-            band.name(),
-            args.frames,
-            &cfg,
-            output,
-            network,
-            clock,
-            mcap.as_mut(),
-        )?
+        (sc, band.name())
     };
+    let (summary, run, window, sc) = run_sim_scenario(
+        scenario,
+        band,
+        args.frames,
+        &cfg,
+        output,
+        network,
+        clock,
+        mcap.as_mut(),
+    )?;
     let mcap_info = match mcap {
         Some(m) => Some(record_room(m, &sc, &run)?),
         None => None,
