@@ -11,8 +11,7 @@ use std::path::{Path, PathBuf};
 
 use quarry_core::{Pose2, TimeUs};
 use quarry_ros2::msgs::{
-    ColorRGBA, Duration, Header, Marker, MarkerArray, Pose, TFMessage, Time, Track, TrackArray,
-    TransformStamped, Vector3,
+    ColorRGBA, Header, Marker, MarkerArray, Pose, Time, Track, TrackArray, Vector3,
 };
 use quarry_ros2::{McapRecorder, Message};
 use serde::Serialize;
@@ -101,147 +100,16 @@ pub fn time(t: TimeUs) -> Time {
     quarry_ros2::convert::time_of(t)
 }
 
-/// A distinct, stable colour per track id (golden-angle hue).
-pub fn color_of(id: u32) -> ColorRGBA {
-    let h = (f64::from(id) * 0.618_033_988_75).fract() * 6.0;
-    let x = 1.0 - (h % 2.0 - 1.0).abs();
-    let (r, g, b) = match h as u32 {
-        0 => (1.0, x, 0.0),
-        1 => (x, 1.0, 0.0),
-        2 => (0.0, 1.0, x),
-        3 => (0.0, x, 1.0),
-        4 => (x, 0.0, 1.0),
-        _ => (1.0, 0.0, x),
-    };
-    ColorRGBA {
-        r: r as f32,
-        g: g as f32,
-        b: b as f32,
-        a: 0.9,
-    }
-}
-
-/// One planar track for [`tracks_msg`] and [`markers_msg`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlanarTrack {
-    /// Id.
-    pub id: u32,
-    /// `Track::TENTATIVE`, `CONFIRMED` or `COASTING`.
-    pub status: u8,
-    /// Position (m).
-    pub x: f64,
-    /// Position (m).
-    pub y: f64,
-    /// Velocity (m/s; 0 if none).
-    pub vx: f64,
-    /// Velocity (m/s).
-    pub vy: f64,
-    /// Row-major position covariance (zeros if none).
-    pub cov: [f64; 4],
-    /// Existence probability or -1.
-    pub existence: f64,
-}
-
-impl PlanarTrack {
-    /// A confirmed track at (x, y) with velocity (vx, vy) and nothing else known.
-    pub fn at(id: u32, x: f64, y: f64, vx: f64, vy: f64) -> Self {
-        Self {
-            id,
-            status: Track::CONFIRMED,
-            x,
-            y,
-            vx,
-            vy,
-            cov: [0.0; 4],
-            existence: -1.0,
-        }
-    }
-}
+pub use quarry_ros2::convert::{planar_track, static_tf, track_markers};
 
 /// The `quarry_msgs/msg/TrackArray` of `tracks` at `t` in `frame`.
-pub fn tracks_msg(t: TimeUs, frame: &str, tracks: &[PlanarTrack]) -> TrackArray {
-    TrackArray {
-        header: Header::new(time(t), frame),
-        tracks: tracks
-            .iter()
-            .map(|p| Track {
-                id: p.id,
-                status: p.status,
-                x: p.x,
-                y: p.y,
-                vx: p.vx,
-                vy: p.vy,
-                position_covariance: p.cov,
-                existence: p.existence,
-            })
-            .collect(),
-    }
+pub fn tracks_msg(t: TimeUs, frame: &str, tracks: &[Track]) -> TrackArray {
+    quarry_ros2::convert::track_array(t, frame, tracks.to_vec())
 }
 
-/// Markers for a 3-D panel: a `DELETEALL` (so ended tracks vanish), then per track a cylinder of
-/// `height` m and a text label with its id, coloured by id.
-pub fn markers_msg(t: TimeUs, frame: &str, tracks: &[PlanarTrack], height: f64) -> MarkerArray {
-    let header = Header::new(time(t), frame);
-    let mut markers = vec![Marker {
-        header: header.clone(),
-        action: Marker::DELETEALL,
-        ..Marker::default()
-    }];
-    for p in tracks {
-        let base = Marker {
-            header: header.clone(),
-            id: p.id as i32,
-            action: Marker::ADD,
-            color: color_of(p.id),
-            lifetime: Duration { sec: 1, nanosec: 0 },
-            ..Marker::default()
-        };
-        markers.push(Marker {
-            ns: "tracks".into(),
-            r#type: Marker::CYLINDER,
-            pose: Pose::planar(p.x, p.y, 0.0).with_z(0.5 * height),
-            scale: Vector3 {
-                x: 0.35,
-                y: 0.35,
-                z: height,
-            },
-            ..base.clone()
-        });
-        markers.push(Marker {
-            ns: "track_ids".into(),
-            r#type: Marker::TEXT_VIEW_FACING,
-            pose: Pose::planar(p.x, p.y, 0.0).with_z(height + 0.2),
-            scale: Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: 0.3,
-            },
-            text: p.id.to_string(),
-            ..base
-        });
-    }
-    MarkerArray { markers }
-}
-
-/// `/tf_static`: each child frame at its planar pose in `parent`.
-pub fn static_tf(t: TimeUs, parent: &str, children: &[(String, Pose2)]) -> TFMessage {
-    TFMessage {
-        transforms: children
-            .iter()
-            .map(|(name, p)| TransformStamped::planar(time(t), parent, name, p.x, p.y, p.theta))
-            .collect(),
-    }
-}
-
-trait WithZ {
-    fn with_z(self, z: f64) -> Self;
-}
-
-impl WithZ for Pose {
-    fn with_z(mut self, z: f64) -> Self {
-        self.position.z = z;
-        self
-    }
+/// [`track_markers`] (cylinders and id labels of `height` m).
+pub fn markers_msg(t: TimeUs, frame: &str, tracks: &[Track], height: f64) -> MarkerArray {
+    track_markers(t, frame, tracks, height)
 }
 
 /// One SLAM + tracking run as the recording sees it (times in seconds from the run's start).
@@ -252,9 +120,9 @@ pub struct SlamotRecording {
     /// Per epoch: (t, estimated pose, true pose if known).
     pub poses: Vec<(f64, Pose2, Option<Pose2>)>,
     /// Per epoch: (t, tracks).
-    pub targets: Vec<(f64, Vec<PlanarTrack>)>,
+    pub targets: Vec<(f64, Vec<Track>)>,
     /// Per epoch: (t, true target positions with their ids).
-    pub targets_truth: Vec<(f64, Vec<PlanarTrack>)>,
+    pub targets_truth: Vec<(f64, Vec<Track>)>,
     /// The final map: (landmark id, position).
     pub map: Vec<(u32, [f64; 2])>,
     /// The true landmarks, if known.

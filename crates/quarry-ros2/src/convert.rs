@@ -1,9 +1,12 @@
 //! Conversions between quarry's vocabulary (quarry-core) and the ROS 2 messages.
 
-use quarry_core::{PolarScan, ScanGeometry, SensorId, TimeUs};
+use quarry_core::{PolarScan, Pose2, ScanGeometry, SensorId, TimeUs};
 
 use crate::cdr::CdrError;
-use crate::msgs::{Header, LaserScan, Time};
+use crate::msgs::{
+    ColorRGBA, Duration, Header, LaserScan, Marker, MarkerArray, Point, Pose, TFMessage, Time,
+    Track, TrackArray, TransformStamped, Vector3,
+};
 
 /// The longest range a [`PolarScan`] holds (its ranges are `u16` millimetres).
 pub const MAX_RANGE_M: f64 = 65.535;
@@ -144,6 +147,141 @@ pub fn polar_scan(
     .map_err(|e| CdrError::Invalid(format!("LaserScan: {e}")))
 }
 
+/// A confirmed planar track at (x, y) with velocity (vx, vy) and nothing else known (no
+/// covariance, no existence probability).
+pub fn planar_track(id: u32, x: f64, y: f64, vx: f64, vy: f64) -> Track {
+    Track {
+        id,
+        status: Track::CONFIRMED,
+        x,
+        y,
+        vx,
+        vy,
+        position_covariance: [0.0; 4],
+        existence: -1.0,
+    }
+}
+
+/// The `quarry_msgs/msg/TrackArray` of `tracks` at `t` in `frame`.
+pub fn track_array(t: TimeUs, frame: &str, tracks: Vec<Track>) -> TrackArray {
+    TrackArray {
+        header: Header::new(time_of(t), frame),
+        tracks,
+    }
+}
+
+/// A distinct, stable colour per track id (golden-angle hue), so that a track keeps its colour
+/// in every panel and every recording.
+pub fn color_of(id: u32) -> ColorRGBA {
+    let h = (f64::from(id) * 0.618_033_988_75).fract() * 6.0;
+    let x = 1.0 - (h % 2.0 - 1.0).abs();
+    let (r, g, b) = match h as u32 {
+        0 => (1.0, x, 0.0),
+        1 => (x, 1.0, 0.0),
+        2 => (0.0, 1.0, x),
+        3 => (0.0, x, 1.0),
+        4 => (x, 0.0, 1.0),
+        _ => (1.0, 0.0, x),
+    };
+    ColorRGBA {
+        r: r as f32,
+        g: g as f32,
+        b: b as f32,
+        a: 0.9,
+    }
+}
+
+fn lifted(x: f64, y: f64, z: f64) -> Pose {
+    let mut p = Pose::planar(x, y, 0.0);
+    p.position.z = z;
+    p
+}
+
+/// Markers of planar tracks for a 3-D panel (Foxglove, RViz): a `DELETEALL` first (so that
+/// ended tracks vanish), then per track a cylinder of `height` m and a text label with its id,
+/// coloured by [`color_of`], living 1 s.
+pub fn track_markers(t: TimeUs, frame: &str, tracks: &[Track], height: f64) -> MarkerArray {
+    let header = Header::new(time_of(t), frame);
+    let mut markers = Vec::with_capacity(1 + 2 * tracks.len());
+    markers.push(Marker {
+        header: header.clone(),
+        action: Marker::DELETEALL,
+        ..Marker::default()
+    });
+    for p in tracks {
+        let base = Marker {
+            header: header.clone(),
+            id: p.id as i32,
+            action: Marker::ADD,
+            color: color_of(p.id),
+            lifetime: Duration { sec: 1, nanosec: 0 },
+            ..Marker::default()
+        };
+        markers.push(Marker {
+            ns: "tracks".into(),
+            r#type: Marker::CYLINDER,
+            pose: lifted(p.x, p.y, 0.5 * height),
+            scale: Vector3 {
+                x: 0.35,
+                y: 0.35,
+                z: height,
+            },
+            ..base.clone()
+        });
+        markers.push(Marker {
+            ns: "track_ids".into(),
+            r#type: Marker::TEXT_VIEW_FACING,
+            pose: lifted(p.x, p.y, height + 0.2),
+            scale: Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: 0.3,
+            },
+            text: p.id.to_string(),
+            ..base
+        });
+    }
+    MarkerArray { markers }
+}
+
+/// A `POINTS` marker (`ns` = `points`) of planar points at height 0 in `frame`: the fused
+/// foreground points of a lidar frame, say. One colour, `size` m squares.
+pub fn points_marker(t: TimeUs, frame: &str, points: &[(f64, f64)], size: f64) -> Marker {
+    Marker {
+        header: Header::new(time_of(t), frame),
+        ns: "points".into(),
+        r#type: Marker::POINTS,
+        action: Marker::ADD,
+        pose: Pose::planar(0.0, 0.0, 0.0),
+        scale: Vector3 {
+            x: size,
+            y: size,
+            z: 0.0,
+        },
+        color: ColorRGBA {
+            r: 0.9,
+            g: 0.9,
+            b: 0.9,
+            a: 1.0,
+        },
+        points: points
+            .iter()
+            .map(|&(x, y)| Point { x, y, z: 0.0 })
+            .collect(),
+        ..Marker::default()
+    }
+}
+
+/// `/tf_static`: each child frame at its planar pose in `parent`.
+pub fn static_tf(t: TimeUs, parent: &str, children: &[(String, Pose2)]) -> TFMessage {
+    TFMessage {
+        transforms: children
+            .iter()
+            .map(|(name, p)| TransformStamped::planar(time_of(t), parent, name, p.x, p.y, p.theta))
+            .collect(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -167,5 +305,24 @@ mod tests {
         let mut cw = m;
         cw.angle_increment = -cw.angle_increment;
         assert!(geometry_of(&cw, 0.025).is_err());
+    }
+
+    #[test]
+    fn markers_clear_then_draw_each_track_twice_in_its_colour() {
+        let tracks = [
+            planar_track(3, 1.0, 2.0, 0.0, 0.0),
+            planar_track(9, -1.0, 0.5, 0.1, 0.0),
+        ];
+        let m = track_markers(TimeUs(2_000_000), "map", &tracks, 1.2);
+        assert_eq!(m.markers.len(), 5);
+        assert_eq!(m.markers[0].action, Marker::DELETEALL);
+        assert_eq!(m.markers[1].r#type, Marker::CYLINDER);
+        assert_eq!(m.markers[2].text, "3");
+        assert!((m.markers[1].pose.position.z - 0.6).abs() < 1e-12);
+        assert_eq!(m.markers[3].color, color_of(9));
+        assert_ne!(color_of(3), color_of(9));
+        let a = track_array(TimeUs(2_000_000), "map", tracks.to_vec());
+        assert_eq!(a.header.stamp.sec, 2);
+        assert_eq!(a.tracks[1].id, 9);
     }
 }

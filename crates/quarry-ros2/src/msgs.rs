@@ -450,6 +450,8 @@ impl Marker {
     pub const CYLINDER: i32 = 3;
     /// Marker type `LINE_STRIP`.
     pub const LINE_STRIP: i32 = 4;
+    /// Marker type `POINTS` (squares of `scale.x` by `scale.y`).
+    pub const POINTS: i32 = 8;
     /// Marker type `SPHERE_LIST`.
     pub const SPHERE_LIST: i32 = 7;
     /// Marker type `TEXT_VIEW_FACING`.

@@ -72,6 +72,36 @@ pub fn topic_key<M: Message>(domain: u32, topic: &str) -> Result<String, String>
     ))
 }
 
+/// The key expression matching `topic` with type `M` under any type hash: a subscriber that
+/// wants to see (and count) publishers whose distribution hashes the type differently, which
+/// rmw_zenoh itself would never match.
+///
+/// # Errors
+/// An invalid topic name ([`check_topic`]).
+pub fn topic_pattern<M: Message>(domain: u32, topic: &str) -> Result<String, String> {
+    check_topic(topic)?;
+    Ok(format!(
+        "{domain}/{}/{}/*",
+        topic.trim_matches('/'),
+        dds_type_name(M::NAME)
+    ))
+}
+
+/// The type hash at the end of a topic key (`RIHS01_…`), if the key has one.
+pub fn hash_of_key(key: &str) -> Option<&str> {
+    key.rsplit('/').next().filter(|h| h.starts_with("RIHS"))
+}
+
+/// A publisher GID derived from its liveliness token (the first 16 bytes of its SHA-256): unique
+/// per session, node and entity, and the same every time the same entity is declared.
+pub fn gid_of(token: &str) -> [u8; GID_LEN] {
+    use sha2::Digest;
+    let d = sha2::Sha256::digest(token.as_bytes());
+    let mut g = [0u8; GID_LEN];
+    g.copy_from_slice(&d[..GID_LEN]);
+    g
+}
+
 /// The metadata rmw_zenoh attaches to each sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Attachment {
@@ -169,6 +199,11 @@ mod tests {
         assert!(topic_key::<LaserScan>(0, "/a//b").is_err());
         assert!(topic_key::<LaserScan>(0, "/a b").is_err());
         assert!(topic_key::<LaserScan>(0, "/").is_err());
+        let p = topic_pattern::<LaserScan>(3, "robot/scan").unwrap();
+        assert_eq!(p, "3/robot/scan/sensor_msgs::msg::dds_::LaserScan_/*");
+        assert_eq!(hash_of_key(&k), Some(LaserScan::type_hash().as_str()));
+        assert_eq!(hash_of_key("0/scan"), None);
+        assert_ne!(gid_of("a"), gid_of("b"));
     }
 
     #[test]

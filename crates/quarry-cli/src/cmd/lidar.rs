@@ -7,7 +7,7 @@
 use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, at};
 use crate::progress;
-use crate::record::{self, Mcap, McapInfo, PlanarTrack};
+use crate::record::{self, Mcap, McapInfo};
 use clap::Args;
 use plotters::prelude::*;
 use quarry_core::{Point2, Pose2, TimeUs};
@@ -16,6 +16,7 @@ use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_sc
 use quarry_repro::lidar::{
     self as repro, EvalFrame, LabelledError, Paper003Metrics, RoomRun, score_labelled,
 };
+use quarry_ros2::msgs::Track;
 use quarry_sim::lidar_room::{
     ClockProfile, GtWriter, NetworkModel, Obstacle, Room, ScannerSim, Scenario, SpeedBand,
 };
@@ -211,10 +212,10 @@ fn scanner_frame(name: &str) -> String {
 }
 
 /// Lidar tracks as planar tracks for the recording.
-pub(crate) fn planar(tracks: &[LidarTrack]) -> Vec<PlanarTrack> {
+pub(crate) fn planar(tracks: &[LidarTrack]) -> Vec<Track> {
     tracks
         .iter()
-        .map(|r| PlanarTrack::at(r.id, r.x, r.y, r.vx, r.vy))
+        .map(|r| record::planar_track(r.id, r.x, r.y, r.vx, r.vy))
         .collect()
 }
 
@@ -242,10 +243,10 @@ fn record_room(mut m: Mcap, sc: &Scenario, run: &RoomRun) -> Result<McapInfo, Cm
         )?;
     }
     for g in &run.gt {
-        let p: Vec<PlanarTrack> = g
+        let p: Vec<Track> = g
             .people
             .iter()
-            .map(|q| PlanarTrack::at(q.id, q.x, q.y, 0.0, 0.0))
+            .map(|q| record::planar_track(q.id, q.x, q.y, 0.0, 0.0))
             .collect();
         m.write(
             "/ground_truth/people",

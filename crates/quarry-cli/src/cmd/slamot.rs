@@ -18,8 +18,9 @@ use serde::Serialize;
 use crate::config_args::ConfigArgs;
 use crate::output::{CmdError, CmdResult, Output, Table};
 use crate::progress;
-use crate::record::{self, Mcap, PlanarTrack, SlamotRecording};
+use crate::record::{self, Mcap, SlamotRecording};
 use quarry_core::Pose2;
+use quarry_ros2::msgs::Track;
 
 /// What `quarry slamot` refuses before running anything.
 #[derive(Debug)]
@@ -1191,10 +1192,10 @@ fn sim_recording(
     frames: &[quarry_sim::slamot::SlamotFrame],
 ) -> SlamotRecording {
     let epochs = 0..res.epoch_t.len();
-    let slot = |v: &Vec<Vec<[f64; 2]>>, k: usize| -> Vec<PlanarTrack> {
+    let slot = |v: &Vec<Vec<[f64; 2]>>, k: usize| -> Vec<Track> {
         v.iter()
             .enumerate()
-            .map(|(l, s)| PlanarTrack::at(l as u32, s[k][0], s[k][1], 0.0, 0.0))
+            .map(|(l, s)| record::planar_track(l as u32, s[k][0], s[k][1], 0.0, 0.0))
             .collect()
     };
     SlamotRecording {
@@ -1235,11 +1236,11 @@ fn mrclam_recording(
     run: &quarry_data::mrclam::MrclamRun,
     res: &quarry_repro::slamot::MrclamResult,
 ) -> SlamotRecording {
-    let mut targets: Vec<(f64, Vec<PlanarTrack>)> = Vec::new();
+    let mut targets: Vec<(f64, Vec<Track>)> = Vec::new();
     for r in &res.tracks {
-        let p = PlanarTrack {
+        let p = Track {
             existence: r.existence,
-            ..PlanarTrack::at(r.id.0, r.state[0], r.state[1], r.state[2], r.state[3])
+            ..record::planar_track(r.id.0, r.state[0], r.state[1], r.state[2], r.state[3])
         };
         match targets.last_mut() {
             Some((t, v)) if *t == r.t => v.push(p),
@@ -1272,7 +1273,9 @@ fn mrclam_recording(
                     .targets
                     .iter()
                     .zip(&run.target_robots)
-                    .filter_map(|(p, id)| p.map(|p| PlanarTrack::at(*id, p[0], p[1], 0.0, 0.0)))
+                    .filter_map(|(p, id)| {
+                        p.map(|p| record::planar_track(*id, p[0], p[1], 0.0, 0.0))
+                    })
                     .collect();
                 (f.t, v)
             })
