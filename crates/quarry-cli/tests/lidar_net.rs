@@ -204,3 +204,228 @@ fn three_node_processes_and_the_server_reproduce_the_in_process_run() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The ROS 2 side of the loopback test: a Python process with `eclipse-zenoh` and `rosbags`
+/// (tests/python/ros2_peer.py) plays a robot running rmw_zenoh. It publishes LaserScans of one
+/// person walking (with a truncated message and a wrong beam count mixed in) on `/scan`;
+/// `quarry lidar-node --ros2-scan /scan` tracks them through `quarry lidar-server --ros2`, and
+/// the Python side decodes every published track message. Only 127.0.0.1.
+#[test]
+fn a_ros2_peer_feeds_the_node_and_decodes_the_servers_tracks() {
+    let reqs =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../quarry-ros2/tests/python/requirements.txt");
+    let Some(py) =
+        quarry_testkit::python::venv_or_skip(Path::new(env!("CARGO_TARGET_TMPDIR")), "ros2", &reqs)
+    else {
+        return;
+    };
+    let exe = env!("CARGO_BIN_EXE_quarry");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ros2-loopback");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let s = |x: &str| x.to_string();
+    let p = |x: &Path| x.display().to_string();
+    // the peer's scanner: 541 beams over 270°, 40 Hz
+    let sensors = r#"[{"id": 0, "x": 0.0, "y": 0.0, "theta_deg": 0.0, "geometry":
+        {"n_beams": 541, "angle_min": -2.356194490192345, "angle_increment": 0.008726646259971648,
+         "range_min": 0.05, "range_max": 30.0, "scan_period": 0.025}}]"#;
+    std::fs::write(dir.join("sensors.json"), sensors).unwrap();
+    let (port, py_port) = (free_port(), free_port());
+    let server_ep = format!("tcp/127.0.0.1:{port}");
+    let py_ep = format!("tcp/127.0.0.1:{py_port}");
+    let mut procs = Procs(Vec::new());
+    let args = vec![
+        s("lidar-server"),
+        s("--sensors"),
+        p(&dir.join("sensors.json")),
+        s("--ros2"),
+        s("--listen"),
+        server_ep.clone(),
+        s("--out"),
+        p(&dir.join("out")),
+        s("--mcap"),
+        p(&dir.join("server.mcap")),
+        s("--idle-timeout"),
+        s("20"),
+        s("--json"),
+    ];
+    procs
+        .0
+        .push((s("server"), spawn(exe, &args, &dir, "server")));
+    let t0 = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            t0.elapsed() < Duration::from_mins(1),
+            "server never listened"
+        );
+        if let Some(st) = procs.0[0].1.try_wait().unwrap() {
+            panic!("server exited early: {st}\n{}", logs(&dir, "server"));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/ros2_peer.py");
+    let msg_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../quarry-ros2/msg");
+    let ready = dir.join("peer.ready");
+    let args = vec![
+        p(&script),
+        s("--listen"),
+        py_ep.clone(),
+        s("--connect"),
+        server_ep.clone(),
+        s("--msg-dir"),
+        p(&msg_dir),
+        s("--ready"),
+        p(&ready),
+    ];
+    procs
+        .0
+        .push((s("peer"), spawn(&p(py.python()), &args, &dir, "peer")));
+    let t0 = Instant::now();
+    while !ready.exists() {
+        assert!(
+            t0.elapsed() < Duration::from_mins(2),
+            "the Python peer never got ready"
+        );
+        if let Some(st) = procs.0[1].1.try_wait().unwrap() {
+            panic!("the Python peer exited early: {st}\n{}", logs(&dir, "peer"));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let args = vec![
+        s("lidar-node"),
+        s("--ros2-scan"),
+        s("/scan"),
+        s("--sensor-id"),
+        s("0"),
+        s("--connect"),
+        server_ep,
+        s("--connect"),
+        py_ep,
+        s("--ros2-idle"),
+        s("2"),
+        s("--json"),
+    ];
+    procs.0.push((s("node"), spawn(exe, &args, &dir, "node")));
+    let outs = wait_all(&mut procs, &dir, Duration::from_mins(3));
+    let server: serde_json::Value = serde_json::from_str(&outs[0]).unwrap();
+    let peer: serde_json::Value = serde_json::from_str(&outs[1]).unwrap();
+    let node: serde_json::Value = serde_json::from_str(&outs[2]).unwrap();
+
+    // the node skipped exactly the faulty messages, and counted them
+    let r = &node["ros2"];
+    assert_eq!(r["malformed"], 1, "{node}");
+    assert_eq!(r["wrong_geometry"], 1, "{node}");
+    assert_eq!(r["foreign_hash"], 0, "{node}");
+    assert!(r["scans"].as_u64().unwrap() > 300, "{node}");
+    // every frame the server tracked reached the peer on the three topics, in order, decoded
+    assert_eq!(peer["errors"], serde_json::json!([]), "{peer}");
+    assert_eq!(peer["other"], serde_json::json!([]));
+    assert_eq!(peer["attachment_len"], 33);
+    let frames = server["frames"].as_u64().unwrap() as usize;
+    assert_eq!(server["ros2_frames"].as_u64().unwrap() as usize, frames);
+    // the server closes (empty) frames from its start, so the peer misses those published
+    // before it subscribed, and no other
+    let tracks = peer["tracks"].as_array().unwrap();
+    let seq0 = tracks[0]["seq"].as_u64().unwrap() as usize;
+    assert!(
+        tracks[0]["stamp"].as_f64().unwrap() < peer["ready_at"].as_f64().unwrap() + 0.5,
+        "the peer missed frames after it subscribed: {}",
+        tracks[0]
+    );
+    assert_eq!(tracks.len() + seq0 - 1, frames, "the peer missed track messages");
+    assert_eq!(peer["poses"].as_u64().unwrap() as usize, tracks.len());
+    assert_eq!(peer["markers"].as_u64().unwrap() as usize, tracks.len());
+    for (k, f) in tracks.iter().enumerate() {
+        assert_eq!(f["seq"].as_u64().unwrap() as usize, seq0 + k);
+        assert_eq!(f["gid_len"], 16);
+        assert_eq!(f["frame_id"], "map");
+    }
+    // the decoded rows are the server's tracks.csv (4 decimals there)
+    let csv = read(&dir.join("out/tracks.csv"));
+    let mut by_frame: Vec<Vec<(u64, f64, f64)>> = Vec::new();
+    let mut last_frame = None;
+    for line in csv.lines().skip(1) {
+        let c: Vec<&str> = line.split(',').collect();
+        if last_frame != Some(c[0]) {
+            by_frame.push(Vec::new());
+            last_frame = Some(c[0]);
+        }
+        let v = |i: usize| c[i].parse::<f64>().unwrap();
+        by_frame
+            .last_mut()
+            .unwrap()
+            .push((c[2].parse().unwrap(), v(3), v(4)));
+    }
+    let decoded: Vec<Vec<(u64, f64, f64)>> = tracks
+        .iter()
+        .map(|f| {
+            f["rows"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|r| {
+                    (
+                        r[0].as_u64().unwrap(),
+                        r[1].as_f64().unwrap(),
+                        r[2].as_f64().unwrap(),
+                    )
+                })
+                .collect()
+        })
+        .filter(|v: &Vec<_>| !v.is_empty())
+        .collect();
+    assert_eq!(decoded.len(), by_frame.len());
+    for (a, b) in decoded.iter().zip(&by_frame) {
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(b) {
+            assert_eq!(x.0, y.0);
+            assert!(
+                (x.1 - y.1).abs() < 6e-5 && (x.2 - y.2).abs() < 6e-5,
+                "{x:?} {y:?}"
+            );
+        }
+    }
+    // and the person is tracked: from 1 s after they enter, a track within 0.3 m of them in at
+    // least 90 % of the frames
+    let truth: Vec<(f64, f64, f64)> = peer["truth"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            (
+                r[0].as_f64().unwrap(),
+                r[1].as_f64().unwrap(),
+                r[2].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    assert!(truth.len() > 150, "{}", truth.len());
+    let (t_in, t_out) = (truth[0].0 + 1.0, truth[truth.len() - 1].0);
+    let (mut n, mut hit) = (0, 0);
+    for f in tracks {
+        let t = f["stamp"].as_f64().unwrap();
+        if t < t_in || t > t_out {
+            continue;
+        }
+        let k = truth.partition_point(|r| r.0 < t).min(truth.len() - 1);
+        let (_, x, y) = truth[k];
+        n += 1;
+        hit += usize::from(
+            f["rows"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|r| (r[1].as_f64().unwrap() - x).hypot(r[2].as_f64().unwrap() - y) < 0.3),
+        );
+    }
+    assert!(n > 80, "{n} frames while the person walked");
+    assert!(
+        hit * 10 >= n * 9,
+        "the person was tracked in {hit} of {n} frames"
+    );
+    // the server's recording holds the same frames
+    assert_eq!(
+        server["mcap"]["messages"].as_u64().unwrap() as usize,
+        1 + 3 * frames
+    );
+}

@@ -19,8 +19,12 @@
 //! - [`envelope`]: the virtual-time step and end markers and the track message (decoders
 //!   fuzzed in `fuzz/`).
 //!
+//! - [`ros2`] (feature `ros2`): ROS 2 over zenoh without a bridge: `Ros2ScanSource` reads a
+//!   `sensor_msgs/msg/LaserScan` topic published by rmw_zenoh, `Ros2TrackPublisher` publishes a
+//!   server's tracks as ROS 2 messages on rmw_zenoh's key expressions.
+//!
 //! Features: `zenoh` (the zenoh transport), `sim` (simulated nodes and the virtual-time server
-//! over quarry-sim's room; the example below needs it).
+//! over quarry-sim's room; the example below needs it), `ros2` (the [`ros2`] module).
 //!
 //! ```
 //! # #[cfg(feature = "sim")] {
@@ -56,6 +60,8 @@ mod error;
 mod fusion;
 pub mod node;
 pub mod proto;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod server;
 pub mod session;
 pub mod transport;
@@ -72,11 +78,12 @@ pub use node::{
 #[cfg(feature = "sim")]
 pub use node::{SimSource, run_sim_node};
 pub use server::{
-    SensorSpec, SensorStatus, ServerRun, WallServerOptions, run_wall_server, run_wall_server_until,
+    ClosedFrame, FrameObserver, SensorSpec, SensorStatus, ServerRun, WallServerOptions,
+    run_wall_server, run_wall_server_observed, run_wall_server_until,
 };
 #[cfg(feature = "sim")]
-pub use server::{run_sim_server, run_sim_server_until};
+pub use server::{run_sim_server, run_sim_server_observed, run_sim_server_until};
 pub use session::{ClockKind, Welcome};
-pub use transport::{LocalBus, Received, Subscription, Transport, key_matches, keys};
+pub use transport::{Liveliness, LocalBus, Received, Subscription, Transport, key_matches, keys};
 #[cfg(feature = "zenoh")]
 pub use zenoh_transport::{ZenohOptions, ZenohTransport};

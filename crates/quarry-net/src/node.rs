@@ -39,6 +39,11 @@ pub trait ScanSource {
     fn geometry(&self) -> ScanGeometry;
     /// The next scan with its source time (the pacing clock), or `None` at the end.
     fn next_scan(&mut self) -> Result<Option<(TimeUs, PolarScan)>, NetError>;
+    /// A live source (a sensor topic) delivers scans as they happen: the node publishes each
+    /// as soon as it has it instead of pacing by the source clock. Recordings are not live.
+    fn live(&self) -> bool {
+        false
+    }
 }
 
 /// Scanner `k` of a simulated room: its scans with their simulated capture times (feature
@@ -674,8 +679,12 @@ pub fn run_wall_node(
         let Some((t_src, mut scan)) = source.next_scan()? else {
             break;
         };
-        // pace by the source clock; a jump of the source's stamps (forwards by more than
-        // MAX_SOURCE_GAP, or backwards) re-anchors the pacing instead of sleeping for it
+        // pace by the source clock (a live source is paced by its sensor already); a jump of
+        // the source's stamps (forwards by more than MAX_SOURCE_GAP, or backwards) re-anchors
+        // the pacing instead of sleeping for it
+        if source.live() {
+            first = Some((t_src, Instant::now()));
+        }
         let (s0, w0) = *first.get_or_insert((t_src, Instant::now()));
         let ahead = t_src.secs_since(s0) / opts.speed;
         let since = w0.elapsed().as_secs_f64();

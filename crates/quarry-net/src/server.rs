@@ -19,7 +19,7 @@ use crate::fusion::AssemblerFusion;
 use crate::proto::FusionStats;
 use crate::proto::wire::{Header, Kind, Message, Payload};
 use crate::transport::{Transport, keys, sensor_of_key};
-use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
+use quarry_core::{Point2, Pose2, ScanGeometry, SensorId, TimeUs};
 #[cfg(feature = "sim")]
 use quarry_sim::lidar_room::FRAME_US;
 use quarry_trackers::lidar_people::{
@@ -69,6 +69,34 @@ pub struct ServerRun {
     pub interrupted: bool,
 }
 
+/// A frame the server has just closed and tracked, as a frame observer sees it
+/// ([`run_wall_server_observed`]): what a recorder (MCAP) or a republisher (ROS 2) needs.
+#[derive(Debug, Clone, Copy)]
+pub struct ClosedFrame<'a> {
+    /// Frame index k (t_f = k · frame period).
+    pub frame: u64,
+    /// Frame time t_f (server clock).
+    pub t: TimeUs,
+    /// No sensor contributed (the tracker skipped the frame).
+    pub no_data: bool,
+    /// Wall clock: the Unix time (µs) of server time 0; `None` in virtual time.
+    pub epoch_unix_us: Option<i64>,
+    /// The fused dynamic points, world frame.
+    pub points: &'a [Point2],
+    /// The tracker's rows after this frame.
+    pub tracks: &'a [LidarTrack],
+}
+
+impl ClosedFrame<'_> {
+    /// The frame's time as a Unix time (µs) in wall-clock mode, the simulated time otherwise.
+    pub fn unix_us(&self) -> TimeUs {
+        TimeUs(self.t.0.saturating_add(self.epoch_unix_us.unwrap_or(0)))
+    }
+}
+
+/// A frame observer: called once per closed frame, in frame order; an error stops the run.
+pub type FrameObserver<'o> = dyn FnMut(&ClosedFrame<'_>) -> Result<(), NetError> + 'o;
+
 /// What the server knows of one of its sensors at the end of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct SensorStatus {
@@ -110,6 +138,7 @@ struct Core {
     ids: Vec<SensorId>,
     start: Instant,
     last_heard: Vec<Option<Instant>>,
+    epoch_unix_us: Option<i64>,
 }
 
 impl Core {
@@ -139,6 +168,7 @@ impl Core {
             ids: sensors.iter().map(|s| s.0).collect(),
             start: Instant::now(),
             last_heard: vec![None; sensors.len()],
+            epoch_unix_us: None,
         })
     }
 
@@ -210,8 +240,14 @@ impl Core {
         self.ids.iter().position(|&s| s == id)
     }
 
-    /// Polls at `now`, tracks the closed frames and publishes their tracks.
-    fn poll(&mut self, transport: &dyn Transport, now: TimeUs) -> Result<(), NetError> {
+    /// Polls at `now`, tracks the closed frames, publishes their tracks and shows each to
+    /// `observer`.
+    fn poll(
+        &mut self,
+        transport: &dyn Transport,
+        now: TimeUs,
+        observer: &mut FrameObserver<'_>,
+    ) -> Result<(), NetError> {
         let t0 = Instant::now();
         let frames = self.server.poll(now)?;
         self.run.server_seconds += t0.elapsed().as_secs_f64();
@@ -224,6 +260,14 @@ impl Core {
                 tracks: rows.clone(),
             };
             transport.publish(keys::TRACKS, &m.encode()?)?;
+            observer(&ClosedFrame {
+                frame: k,
+                t: f.t,
+                no_data: f.no_data,
+                epoch_unix_us: self.epoch_unix_us,
+                points: &f.points,
+                tracks: &rows,
+            })?;
             self.run.frames_tracked += 1;
             self.run.frames_no_data += usize::from(f.no_data);
             self.run.tracks.push((k, f.t, rows));
@@ -425,6 +469,29 @@ pub fn run_sim_server_until(
     idle_timeout: Duration,
     stop: &AtomicBool,
 ) -> Result<ServerRun, NetError> {
+    run_sim_server_observed(
+        transport,
+        sensors,
+        cfg,
+        t_end,
+        idle_timeout,
+        stop,
+        &mut |_| Ok(()),
+    )
+}
+
+/// [`run_sim_server_until`] that shows every closed frame to `observer` (a recorder, a
+/// republisher). (Feature `sim`.)
+#[cfg(feature = "sim")]
+pub fn run_sim_server_observed(
+    transport: &dyn Transport,
+    sensors: &[SensorSpec],
+    cfg: &LidarPeopleConfig,
+    t_end: TimeUs,
+    idle_timeout: Duration,
+    stop: &AtomicBool,
+    observer: &mut FrameObserver<'_>,
+) -> Result<ServerRun, NetError> {
     let mut core = Core::new(sensors, cfg)?;
     let mut sub = transport.subscribe(keys::NODE_ALL)?;
     let mut session = Session::new(
@@ -444,10 +511,10 @@ pub fn run_sim_server_until(
     let mut byes = vec![false; sensors.len()];
 
     // the in-process run's `deliver`: every copy that has arrived by `now`, then a poll
-    let deliver = |core: &mut Core,
-                   queue: &mut BinaryHeap<Reverse<(i64, u64, usize)>>,
-                   pending: &mut Vec<Option<Vec<Vec<u8>>>>,
-                   now: i64|
+    let mut deliver = |core: &mut Core,
+                       queue: &mut BinaryHeap<Reverse<(i64, u64, usize)>>,
+                       pending: &mut Vec<Option<Vec<Vec<u8>>>>,
+                       now: i64|
      -> Result<(), NetError> {
         while let Some(Reverse((ta, _, idx))) = queue.peek().copied() {
             if ta > now {
@@ -460,7 +527,7 @@ pub fn run_sim_server_until(
                 }
             }
         }
-        core.poll(transport, TimeUs(now))
+        core.poll(transport, TimeUs(now), observer)
     };
 
     loop {
@@ -658,6 +725,19 @@ pub fn run_wall_server_until(
     opts: &WallServerOptions,
     stop: &AtomicBool,
 ) -> Result<ServerRun, NetError> {
+    run_wall_server_observed(transport, sensors, cfg, opts, stop, &mut |_| Ok(()))
+}
+
+/// [`run_wall_server_until`] that shows every closed frame to `observer`: `lidar-server
+/// --mcap` records through it, `--ros2` republishes the tracks as ROS 2 messages.
+pub fn run_wall_server_observed(
+    transport: &dyn Transport,
+    sensors: &[SensorSpec],
+    cfg: &LidarPeopleConfig,
+    opts: &WallServerOptions,
+    stop: &AtomicBool,
+    observer: &mut FrameObserver<'_>,
+) -> Result<ServerRun, NetError> {
     let mut core = Core::new(sensors, cfg)?;
     let mut sub = transport.subscribe(keys::NODE_ALL)?;
     let mut session = Session::new(
@@ -667,6 +747,10 @@ pub fn run_wall_server_until(
     )?;
     core.run.session = session.id;
     let start = Instant::now();
+    core.epoch_unix_us = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()
+        .and_then(|d| i64::try_from(d.as_micros()).ok());
     let now = || TimeUs(start.elapsed().as_micros() as i64);
     let mut ended = vec![false; sensors.len()];
     let mut byes = vec![false; sensors.len()];
@@ -755,7 +839,7 @@ pub fn run_wall_server_until(
             }
         }
         if Instant::now() >= next_poll {
-            core.poll(transport, now())?;
+            core.poll(transport, now(), observer)?;
             next_poll = Instant::now() + opts.poll_interval;
         }
         let all_ended = ended.iter().all(|&e| e);
@@ -774,7 +858,7 @@ pub fn run_wall_server_until(
             // every frame whose deadline has passed by then, plus the last window
             let fc = cfg.tau_sync_s + cfg.l_max_s + cfg.frame_period_s;
             let flush = TimeUs(now().0 + (fc * 1e6).round() as i64);
-            core.poll(transport, flush)?;
+            core.poll(transport, flush, observer)?;
             if all_ended {
                 let ids = core.ids.clone();
                 linger(transport, sub.as_mut(), &ids, &mut byes)?;

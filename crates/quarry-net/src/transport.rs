@@ -136,6 +136,9 @@ pub struct Received {
     pub key: String,
     /// The payload bytes.
     pub payload: Vec<u8>,
+    /// The sample's attachment, if it had one (rmw_zenoh puts its sequence number, source
+    /// timestamp and publisher GID there: `quarry_ros2::rmw_zenoh::Attachment`).
+    pub attachment: Option<Vec<u8>>,
 }
 
 /// A subscription's receiving end.
@@ -150,6 +153,53 @@ pub trait Transport: Send + Sync {
     fn publish(&self, key: &str, payload: &[u8]) -> Result<(), NetError>;
     /// Subscribes to the keys matching `pattern`.
     fn subscribe(&self, pattern: &str) -> Result<Box<dyn Subscription>, NetError>;
+    /// Publishes `payload` on `key` with an attachment (per-sample metadata beside the payload,
+    /// as ROS 2's rmw_zenoh sends). The default refuses: a transport that cannot carry it
+    /// must not drop it silently.
+    fn publish_with_attachment(
+        &self,
+        key: &str,
+        payload: &[u8],
+        attachment: &[u8],
+    ) -> Result<(), NetError> {
+        let _ = (key, payload, attachment);
+        Err(NetError::Transport(
+            "this transport does not carry sample attachments".into(),
+        ))
+    }
+    /// Declares a liveliness token on `key` (how ROS 2 tools discover a zenoh publisher); it
+    /// lives as long as the returned handle. The default (an in-process transport, which has no
+    /// discovery) returns an empty handle.
+    fn declare_liveliness(&self, key: &str) -> Result<Liveliness, NetError> {
+        let _ = key;
+        Ok(Liveliness::none())
+    }
+}
+
+/// A declared liveliness token ([`Transport::declare_liveliness`]); dropping it undeclares it.
+pub struct Liveliness(Option<Box<dyn std::any::Any + Send + Sync>>);
+
+impl Liveliness {
+    /// A handle that holds nothing (the transport has no liveliness).
+    pub fn none() -> Self {
+        Self(None)
+    }
+    /// A handle holding a transport's token.
+    pub fn holding(token: Box<dyn std::any::Any + Send + Sync>) -> Self {
+        Self(Some(token))
+    }
+    /// Whether it holds a token.
+    pub fn is_declared(&self) -> bool {
+        self.0.is_some()
+    }
+}
+
+impl std::fmt::Debug for Liveliness {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Liveliness")
+            .field("declared", &self.is_declared())
+            .finish()
+    }
 }
 
 /// Whether `key` matches `pattern` (`*` = one chunk, `**` = any number of chunks).
@@ -237,8 +287,13 @@ fn poisoned<T>(_: T) -> NetError {
     NetError::Transport("local bus lock poisoned".into())
 }
 
-impl Transport for LocalBus {
-    fn publish(&self, key: &str, payload: &[u8]) -> Result<(), NetError> {
+impl LocalBus {
+    fn deliver(
+        &self,
+        key: &str,
+        payload: &[u8],
+        attachment: Option<&[u8]>,
+    ) -> Result<(), NetError> {
         // send outside the lock: a bounded send may wait for its subscriber
         let targets: Vec<(u64, Tx)> = self
             .subs
@@ -254,6 +309,7 @@ impl Transport for LocalBus {
             let r = Received {
                 key: key.to_string(),
                 payload: payload.to_vec(),
+                attachment: attachment.map(<[u8]>::to_vec),
             };
             if !tx.send(r) {
                 gone.push(id);
@@ -267,6 +323,21 @@ impl Transport for LocalBus {
                 .retain(|(id, _, _)| !gone.contains(id));
         }
         Ok(())
+    }
+}
+
+impl Transport for LocalBus {
+    fn publish(&self, key: &str, payload: &[u8]) -> Result<(), NetError> {
+        self.deliver(key, payload, None)
+    }
+
+    fn publish_with_attachment(
+        &self,
+        key: &str,
+        payload: &[u8],
+        attachment: &[u8],
+    ) -> Result<(), NetError> {
+        self.deliver(key, payload, Some(attachment))
     }
 
     fn subscribe(&self, pattern: &str) -> Result<Box<dyn Subscription>, NetError> {

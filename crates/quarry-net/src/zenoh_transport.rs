@@ -3,7 +3,7 @@
 //! fast publisher is slowed down rather than dropped.
 
 use crate::NetError;
-use crate::transport::{Received, Subscription, Transport};
+use crate::transport::{Liveliness, Received, Subscription, Transport};
 use std::time::Duration;
 use zenoh::Wait;
 use zenoh::handlers::FifoChannelHandler;
@@ -64,6 +64,11 @@ impl ZenohTransport {
         let session = zenoh::open(c).wait().map_err(|e| zerr("open", e))?;
         Ok(Self { session })
     }
+
+    /// This session's zenoh id (hex), as rmw_zenoh's liveliness tokens name it.
+    pub fn zid(&self) -> String {
+        self.session.zid().to_string()
+    }
 }
 
 impl Drop for ZenohTransport {
@@ -88,6 +93,7 @@ impl Subscription for ZenohSub {
         Ok(s.map(|s| Received {
             key: s.key_expr().as_str().to_string(),
             payload: s.payload().to_bytes().into_owned(),
+            attachment: s.attachment().map(|a| a.to_bytes().into_owned()),
         }))
     }
 }
@@ -99,6 +105,30 @@ impl Transport for ZenohTransport {
             .congestion_control(CongestionControl::Block)
             .wait()
             .map_err(|e| zerr("put", e))
+    }
+
+    fn publish_with_attachment(
+        &self,
+        key: &str,
+        payload: &[u8],
+        attachment: &[u8],
+    ) -> Result<(), NetError> {
+        self.session
+            .put(key, payload.to_vec())
+            .attachment(attachment.to_vec())
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(|e| zerr("put", e))
+    }
+
+    fn declare_liveliness(&self, key: &str) -> Result<Liveliness, NetError> {
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(key.to_string())
+            .wait()
+            .map_err(|e| zerr(&format!("liveliness token {key}"), e))?;
+        Ok(Liveliness::holding(Box::new(token)))
     }
 
     fn subscribe(&self, pattern: &str) -> Result<Box<dyn Subscription>, NetError> {

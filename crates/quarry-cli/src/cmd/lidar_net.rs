@@ -7,8 +7,9 @@ use clap::Args;
 use quarry_core::{Pose2, ScanGeometry, SensorId, TimeUs};
 use quarry_data::scans_csv::{ScanCsvOptions, ScanCsvReader, parse_scan_meta};
 use quarry_net::proto::SyncMode;
+use quarry_net::ros2::{Ros2Options, Ros2ScanSource, Ros2ScanStats, Ros2TrackPublisher};
 use quarry_net::{
-    CsvSource, NodeSummary, SensorSpec, SensorStatus, ServerRun, SimSource, Transport,
+    ClosedFrame, CsvSource, NodeSummary, SensorSpec, SensorStatus, ServerRun, SimSource, Transport,
     WallNodeOptions, WallServerOptions,
 };
 use quarry_sim::lidar_room::{ClockProfile, NetworkModel, Scenario, SpeedBand};
@@ -57,6 +58,33 @@ pub struct ZenohArgs {
     /// Also find peers by zenoh multicast scouting (off: only the explicit endpoints).
     #[arg(long)]
     pub multicast: bool,
+    /// ROS 2 domain id for --ros2 / --ros2-scan (0-232; default: $ROS_DOMAIN_ID, else 0).
+    #[arg(long)]
+    pub ros2_domain: Option<u32>,
+}
+
+impl ZenohArgs {
+    /// The ROS 2 options of this process: domain (flag, else `ROS_DOMAIN_ID`, else 0), the
+    /// session's zenoh id and the node name.
+    fn ros2(&self, zid: &str, node: &str) -> Result<Ros2Options, CmdError> {
+        let domain = match self.ros2_domain {
+            Some(d) => d,
+            None => match std::env::var("ROS_DOMAIN_ID") {
+                Ok(v) if !v.trim().is_empty() => v
+                    .trim()
+                    .parse()
+                    .map_err(|_| format!("ROS_DOMAIN_ID={v:?} is not a domain id (0-232)"))?,
+                _ => 0,
+            },
+        };
+        let o = Ros2Options {
+            domain,
+            zid: zid.into(),
+            node: node.into(),
+        };
+        o.validate().map_err(|e| format!("--ros2-domain: {e}"))?;
+        Ok(o)
+    }
 }
 
 /// The longest wait or run a duration flag accepts: 30 days (anything longer is a typo, and
@@ -109,18 +137,20 @@ fn scenario(a: &RoomArgs, cfg: &LidarPeopleConfig) -> Result<Scenario, CmdError>
         .with_clock(ClockProfile::parse(&a.clock_profile)?))
 }
 
+/// The zenoh session and its id (the id names the ROS 2 liveliness tokens).
 #[cfg(feature = "zenoh")]
-fn open_transport(z: &ZenohArgs) -> Result<Box<dyn Transport>, CmdError> {
+fn open_transport(z: &ZenohArgs) -> Result<(Box<dyn Transport>, String), CmdError> {
     let t = quarry_net::ZenohTransport::open(&quarry_net::ZenohOptions {
         listen: z.listen.clone(),
         connect: z.connect.clone(),
         multicast_scouting: z.multicast,
     })?;
-    Ok(Box::new(t))
+    let zid = t.zid();
+    Ok((Box::new(t), zid))
 }
 
 #[cfg(not(feature = "zenoh"))]
-fn open_transport(_: &ZenohArgs) -> Result<Box<dyn Transport>, CmdError> {
+fn open_transport(_: &ZenohArgs) -> Result<(Box<dyn Transport>, String), CmdError> {
     Err("this quarry was built without the `zenoh` feature (cargo build -p quarry-cli --features zenoh)".into())
 }
 
@@ -147,14 +177,23 @@ CSV sources (--scans): one row per scan, stamp_s,r0..r{N-1} (ranges in metres, N
 no return); the geometry comes from --meta (scan_meta.json) and --meta-key. Malformed rows and \
 stamps going backwards are skipped and counted.
 
+ROS 2 source (--ros2-scan TOPIC): subscribes to a sensor_msgs/msg/LaserScan topic published by a \
+ROS 2 node with rmw_zenoh (connect to its zenoh router, e.g. --connect tcp/127.0.0.1:7447, and to the \
+server). The first scan fixes the geometry; scans are sent on as they arrive (a backlog older than \
+0.25 s is dropped), and the node stops after --ros2-idle seconds without a scan. Malformed messages, \
+a changed beam count, other type hashes and stamps going backwards are skipped and counted (JSON \
+field ros2). See docs/ros2.md.
+
 JSON (--json): sensor, scans, datagrams, dynamic_points, lost, duplicated, unsynced, sync_replies, \
-offset_us, client_ms_per_scan.
+offset_us, client_ms_per_scan; with --ros2-scan also ros2 (received, scans, malformed, \
+wrong_geometry, foreign_hash, stamps_backwards, stale, first_skip).
 
 EXAMPLES:
   quarry lidar-node --scanner 0 --connect tcp/192.168.1.10:7447
   quarry lidar-node --clock virtual --scanner 2 --frames 200 --seed 4 --connect tcp/127.0.0.1:7447
   quarry lidar-node --scans right.csv --meta scan_meta.json --meta-key positive_1 --sensor-id 0 \\
-      --connect tcp/127.0.0.1:7447"
+      --connect tcp/127.0.0.1:7447
+  quarry lidar-node --ros2-scan /scan --sensor-id 0 --connect tcp/127.0.0.1:7447"
 )]
 pub struct LidarNodeArgs {
     /// Clock mode: wall (real time, synchronised clocks) or virtual (simulated time).
@@ -186,19 +225,54 @@ pub struct LidarNodeArgs {
     /// way to run.
     #[arg(long)]
     pub no_sync: bool,
-    /// Seconds to wait for the server's beacon (>= 0, at most 30 days).
+    /// Seconds to wait for the server's beacon and, with --ros2-scan, for the first scan (>= 0,
+    /// at most 30 days).
     #[arg(long, default_value_t = 30.0)]
     pub wait_server: f64,
+    /// Read scans from this ROS 2 LaserScan topic (rmw_zenoh) instead of the simulated room or
+    /// a CSV (wall clock only; --sensor-id names the scanner).
+    #[arg(long, value_name = "TOPIC")]
+    pub ros2_scan: Option<String>,
+    /// With --ros2-scan: stop after this many seconds without a scan (> 0, at most 30 days).
+    #[arg(long, default_value_t = 5.0)]
+    pub ros2_idle: f64,
     #[command(flatten)]
     pub room: RoomArgs,
     #[command(flatten)]
     pub net: ZenohArgs,
 }
 
+/// What `quarry lidar-node --json` prints.
+#[derive(Debug, Serialize)]
+pub struct NodeReport {
+    #[serde(flatten)]
+    node: NodeSummary,
+    /// With --ros2-scan: what the ROS 2 source received and skipped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ros2: Option<Ros2ScanStats>,
+}
+
 /// Entry point of `quarry lidar-node`.
 pub fn run_node(a: &LidarNodeArgs, out: &Output) -> CmdResult {
-    let s = node_inner(a)?;
-    out.emit(&s, || {
+    let r = node_inner(a)?;
+    let s = r.node;
+    out.emit(&r, || {
+        let ros2 = r.ros2.as_ref().map_or(String::new(), |st| {
+            format!(
+                "  ROS 2 source: {} received, {} scans; skipped {} malformed, {} wrong geometry, \
+                 {} other type hash, {} stamps backwards, {} stale{}\n",
+                st.received,
+                st.scans,
+                st.malformed,
+                st.wrong_geometry,
+                st.foreign_hash,
+                st.stamps_backwards,
+                st.stale,
+                st.first_skip
+                    .as_ref()
+                    .map_or(String::new(), |w| format!(" (first: {w})"))
+            )
+        });
         format!(
             "lidar-node sensor {}: {} scans, {} datagrams, {} dynamic points; lost {}, duplicated {}, \
              unsynced {}; {} sync replies, offset {}; {:.3} ms per scan\n",
@@ -212,27 +286,33 @@ pub fn run_node(a: &LidarNodeArgs, out: &Output) -> CmdResult {
             s.sync_replies,
             s.offset_us.map_or("-".into(), |o| format!("{o:.0} µs")),
             s.client_ms_per_scan
-        )
+        ) + &ros2
     })
 }
 
-fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
+fn node_inner(a: &LidarNodeArgs) -> Result<NodeReport, CmdError> {
     let virtual_time = clock_mode(&a.clock)?;
     let cfg = load_config(&a.room)?;
     let wait = seconds_flag("--wait-server", a.wait_server, false)?;
+    let report = |node| NodeReport { node, ros2: None };
+    if a.scans.is_some() && a.ros2_scan.is_some() {
+        return Err("--scans and --ros2-scan are two sources: give one".into());
+    }
     if virtual_time {
-        if a.scans.is_some() {
-            return Err("--scans needs --clock wall (recordings replay in real time)".into());
+        if a.scans.is_some() || a.ros2_scan.is_some() {
+            return Err(
+                "--scans and --ros2-scan need --clock wall (real scans come in real time)".into(),
+            );
         }
         let sc = scenario(&a.room, &cfg)?;
-        let t = open_transport(&a.net)?;
-        return Ok(quarry_net::run_sim_node(
+        let (t, _) = open_transport(&a.net)?;
+        return Ok(report(quarry_net::run_sim_node(
             t.as_ref(),
             sc,
             a.scanner,
             &cfg,
             wait,
-        )?);
+        )?));
     }
     let opts = WallNodeOptions {
         speed: a.speed,
@@ -270,23 +350,39 @@ fn node_inner(a: &LidarNodeArgs) -> Result<NodeSummary, CmdError> {
         )
         .map_err(|e| format!("{}: {e}", path.display()))?;
         let mut src = CsvSource::new(reader, id, geometry);
-        let t = open_transport(&a.net)?;
-        return Ok(quarry_net::run_wall_node(
+        let (t, _) = open_transport(&a.net)?;
+        return Ok(report(quarry_net::run_wall_node(
             t.as_ref(),
             &mut src,
             &cfg,
             &opts,
-        )?);
+        )?));
+    }
+    if let Some(topic) = &a.ros2_scan {
+        let idle = seconds_flag("--ros2-idle", a.ros2_idle, true)?;
+        let (t, zid) = open_transport(&a.net)?;
+        let ros = a
+            .net
+            .ros2(&zid, &format!("quarry_lidar_node_{}", a.sensor_id))?;
+        let id = SensorId(a.sensor_id);
+        let sub = Ros2ScanSource::subscribe(t.as_ref(), &ros, topic, id)
+            .map_err(|e| format!("--ros2-scan {topic}: {e}"))?;
+        let mut src = sub.first_scan(wait, idle)?;
+        let node = quarry_net::run_wall_node(t.as_ref(), &mut src, &cfg, &opts)?;
+        return Ok(NodeReport {
+            node,
+            ros2: Some(src.stats().clone()),
+        });
     }
     let sc = scenario(&a.room, &cfg)?;
     let mut src = SimSource::new(sc, a.scanner)?;
-    let t = open_transport(&a.net)?;
-    Ok(quarry_net::run_wall_node(
+    let (t, _) = open_transport(&a.net)?;
+    Ok(report(quarry_net::run_wall_node(
         t.as_ref(),
         &mut src,
         &cfg,
         &opts,
-    )?)
+    )?))
 }
 
 /// Arguments of `quarry lidar-server`.
@@ -318,6 +414,17 @@ same --band/--people/--frames/--seed as the nodes and then writes exactly the tr
 with those options. --clock wall (default): real time; stops when every sensor has sent its end \
 marker, after --duration seconds, or --idle-timeout seconds without data.
 
+ROS 2 (--ros2): the tracks of every frame also go out as ROS 2 messages over rmw_zenoh's keys \
+(domain --ros2-domain or $ROS_DOMAIN_ID): --ros2-topic (default /quarry/tracks, \
+quarry_msgs/msg/TrackArray), its /poses (geometry_msgs/msg/PoseArray) and /markers \
+(visualization_msgs/msg/MarkerArray), positions in --frame-id (default map), stamped with Unix time. \
+See docs/ros2.md.
+
+Recording (--mcap FILE): /tracks, /tracks/markers, /fused/points (the fused foreground points the \
+nodes sent, a visualization_msgs/msg/Marker of POINTS: the server never sees the full scans), \
+/tf_static (each sensor's pose as laser_<id> in map), ROS 2 CDR with the schemas embedded, for \
+Foxglove, ros2 bag and Rerun.
+
 Outputs (--out DIR): tracks.csv (frame,t_us,track_id,x,y,alpha,vx,vy,support,rms,born,gate_replaced, \
 as `quarry lidar`), tracks_mot.txt (MOTChallenge rows with world x, y) and server.json (the summary).
 
@@ -329,7 +436,8 @@ silent / never joined, joined, joins, ended, accepted, last_heard_s, silent_for_
 
 EXAMPLES:
   quarry lidar-server --listen tcp/0.0.0.0:7447 --out run1
-  quarry lidar-server --clock virtual --frames 200 --seed 4 --listen tcp/127.0.0.1:7447 --out net"
+  quarry lidar-server --clock virtual --frames 200 --seed 4 --listen tcp/127.0.0.1:7447 --out net
+  quarry lidar-server --sensors robot.json --ros2 --listen tcp/127.0.0.1:7448 --mcap run.mcap"
 )]
 pub struct LidarServerArgs {
     /// Clock mode: wall (real time) or virtual (replay of virtual-time nodes).
@@ -348,6 +456,18 @@ pub struct LidarServerArgs {
     /// most 30 days).
     #[arg(long, default_value_t = 20.0)]
     pub idle_timeout: f64,
+    /// Also publish the tracks as ROS 2 messages over rmw_zenoh (see --ros2-topic).
+    #[arg(long)]
+    pub ros2: bool,
+    /// With --ros2: the tracks' topic (its /poses and /markers are published too).
+    #[arg(long, default_value = "/quarry/tracks")]
+    pub ros2_topic: String,
+    /// With --ros2: the frame id of the track positions (the sensors' world frame).
+    #[arg(long, default_value = "map")]
+    pub frame_id: String,
+    /// Record the run as MCAP (ROS 2 CDR messages: tracks, markers, fused points, sensor frames).
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     #[command(flatten)]
     pub room: RoomArgs,
     #[command(flatten)]
@@ -414,6 +534,12 @@ pub struct ServerSummary {
     pub refused: Vec<(u16, String)>,
     /// Per sensor: what the server knows of it at the end.
     pub sensors: Vec<SensorReport>,
+    /// With --ros2: frames published as ROS 2 messages.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ros2_frames: Option<i64>,
+    /// With --mcap: the recording.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mcap: Option<crate::record::McapInfo>,
 }
 
 /// One sensor in the server's summary.
@@ -460,6 +586,8 @@ fn summary(clock: &str, r: &ServerRun) -> ServerSummary {
                 status: *st,
             })
             .collect(),
+        ros2_frames: None,
+        mcap: None,
     }
 }
 
@@ -596,18 +724,73 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
         .duration
         .map(|d| seconds_flag("--duration", d, true))
         .transpose()?;
-    let t = open_transport(&a.net)?;
+    // the recording first: an unwritable --mcap path fails before any network is opened
+    let mut mcap = crate::record::Mcap::open(a.mcap.as_ref())?;
+    let (t, zid) = open_transport(&a.net)?;
+    let mut ros2 = if a.ros2 {
+        let o = a.net.ros2(&zid, "quarry_lidar_server")?;
+        Some(
+            Ros2TrackPublisher::new(t.as_ref(), &o, &a.ros2_topic, &a.frame_id)
+                .map_err(|e| format!("--ros2-topic {}: {e}", a.ros2_topic))?,
+        )
+    } else {
+        None
+    };
+    let mut tf_written = false;
+    let mut observe = |f: &ClosedFrame<'_>| -> Result<(), quarry_net::NetError> {
+        if let Some(p) = ros2.as_mut() {
+            p.publish(t.as_ref(), f)?;
+        }
+        if let Some(m) = mcap.as_mut() {
+            let stamp = f.unix_us();
+            if !tf_written {
+                tf_written = true;
+                let lasers: Vec<(String, Pose2)> = sensors
+                    .iter()
+                    .map(|s| (format!("laser_{}", s.0.0), s.1))
+                    .collect();
+                m.write(
+                    "/tf_static",
+                    stamp,
+                    &crate::record::static_tf(stamp, "map", &lasers),
+                )
+                .map_err(rec_err)?;
+            }
+            let tracks = super::lidar::planar(f.tracks);
+            m.write(
+                "/tracks",
+                stamp,
+                &crate::record::tracks_msg(stamp, "map", &tracks),
+            )
+            .map_err(rec_err)?;
+            m.write(
+                "/tracks/markers",
+                stamp,
+                &crate::record::markers_msg(stamp, "map", &tracks, 1.2),
+            )
+            .map_err(rec_err)?;
+            let pts: Vec<(f64, f64)> = f.points.iter().map(|p| (p.x, p.y)).collect();
+            m.write(
+                "/fused/points",
+                stamp,
+                &quarry_ros2::convert::points_marker(stamp, "map", &pts, 0.04),
+            )
+            .map_err(rec_err)?;
+        }
+        Ok(())
+    };
     // Ctrl-C / SIGTERM: stop cleanly with what we have
     crate::interrupt::install();
     let run = if virtual_time {
         let t_end = TimeUs((sc.duration_s * 1e6).round() as i64);
-        quarry_net::run_sim_server_until(
+        quarry_net::run_sim_server_observed(
             t.as_ref(),
             &sensors,
             &cfg,
             t_end,
             idle,
             crate::interrupt::flag(),
+            &mut observe,
         )?
     } else {
         let opts = WallServerOptions {
@@ -615,15 +798,20 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
             idle_timeout: idle,
             ..WallServerOptions::default()
         };
-        quarry_net::run_wall_server_until(
+        quarry_net::run_wall_server_observed(
             t.as_ref(),
             &sensors,
             &cfg,
             &opts,
             crate::interrupt::flag(),
+            &mut observe,
         )?
     };
-    let s = summary(&a.clock, &run);
+    let mut s = summary(&a.clock, &run);
+    s.ros2_frames = ros2.as_ref().map(Ros2TrackPublisher::published);
+    if let Some(m) = mcap {
+        s.mcap = Some(m.finish()?);
+    }
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(at(dir))?;
         super::lidar::write_tracks(&dir.join("tracks.csv"), &run.tracks)?;
@@ -633,6 +821,12 @@ fn server_inner(a: &LidarServerArgs) -> Result<ServerSummary, CmdError> {
         std::fs::write(&path, js).map_err(at(&path))?;
     }
     Ok(s)
+}
+
+/// A recorder error inside the server's frame observer (which speaks `NetError`).
+#[allow(clippy::needless_pass_by_value)] // used as `map_err(rec_err)`
+fn rec_err(e: CmdError) -> quarry_net::NetError {
+    quarry_net::NetError::Io(format!("--mcap: {e}"))
 }
 
 #[cfg(test)]
