@@ -112,6 +112,77 @@ pub fn markers_msg(t: TimeUs, frame: &str, tracks: &[Track], height: f64) -> Mar
     track_markers(t, frame, tracks, height)
 }
 
+/// Boxes (id, `[left, top, width, height]` in 0-based pixels, score) as a
+/// `vision_msgs/msg/Detection2DArray` in `frame`: the box centre and size, class `person`, the
+/// id in `id` (a track id for the trackers, which is how Foxglove labels them).
+pub fn detections(
+    t: TimeUs,
+    frame: &str,
+    boxes: impl Iterator<Item = (String, [f64; 4], f64)>,
+) -> quarry_ros2::msgs::Detection2DArray {
+    use quarry_ros2::msgs::{
+        BoundingBox2D, Detection2D, Detection2DArray, ObjectHypothesis, ObjectHypothesisWithPose,
+        Point2D, Pose2D,
+    };
+    let header = Header::new(time(t), frame);
+    Detection2DArray {
+        header: header.clone(),
+        detections: boxes
+            .map(|(id, b, score)| Detection2D {
+                header: header.clone(),
+                results: vec![ObjectHypothesisWithPose {
+                    hypothesis: ObjectHypothesis {
+                        class_id: "person".into(),
+                        score,
+                    },
+                    ..ObjectHypothesisWithPose::default()
+                }],
+                bbox: BoundingBox2D {
+                    center: Pose2D {
+                        position: Point2D {
+                            x: b[0] + 0.5 * b[2],
+                            y: b[1] + 0.5 * b[3],
+                        },
+                        theta: 0.0,
+                    },
+                    size_x: b[2],
+                    size_y: b[3],
+                },
+                id,
+            })
+            .collect(),
+    }
+}
+
+/// Pixels (`color`: `L8`, `L16` (native-endian `u16` as bytes: depth in mm) or `Rgb8`) as a PNG
+/// `sensor_msgs/msg/CompressedImage` in `frame` (fast compression).
+///
+/// # Errors
+/// The encoder's (a buffer that does not hold `width` x `height` pixels).
+pub fn png_image(
+    t: TimeUs,
+    frame: &str,
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+    color: image::ExtendedColorType,
+) -> Result<quarry_ros2::msgs::CompressedImage, CmdError> {
+    use image::ImageEncoder;
+    let mut data = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut data,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    )
+    .write_image(pixels, width, height, color)
+    .map_err(|e| format!("PNG encoding for --mcap: {e}"))?;
+    Ok(quarry_ros2::msgs::CompressedImage {
+        header: Header::new(time(t), frame),
+        format: "png".into(),
+        data,
+    })
+}
+
 /// One SLAM + tracking run as the recording sees it (times in seconds from the run's start).
 #[derive(Debug, Default)]
 pub struct SlamotRecording {

@@ -332,7 +332,11 @@ fn a_ros2_peer_feeds_the_node_and_decodes_the_servers_tracks() {
         "the peer missed frames after it subscribed: {}",
         tracks[0]
     );
-    assert_eq!(tracks.len() + seq0 - 1, frames, "the peer missed track messages");
+    assert_eq!(
+        tracks.len() + seq0 - 1,
+        frames,
+        "the peer missed track messages"
+    );
     assert_eq!(peer["poses"].as_u64().unwrap() as usize, tracks.len());
     assert_eq!(peer["markers"].as_u64().unwrap() as usize, tracks.len());
     for (k, f) in tracks.iter().enumerate() {

@@ -223,6 +223,21 @@ fn mcap_flag_errors_name_the_path() {
     let (code, _, err) = quarry(&["lidar", "--frames", "20", "--mcap", d.to_str().unwrap()]);
     assert_ne!(code, 0);
     assert!(err.contains("is a directory"), "{err}");
+    // the other recorders refuse the same path at once (the server before it opens a network
+    // session)
+    for cmd in [
+        vec!["rgbd", "--scenario", "s1"],
+        vec!["lidar-server", "--listen", "tcp/127.0.0.1:1"],
+    ] {
+        let mut a = cmd.clone();
+        a.extend(["--mcap", bad.to_str().unwrap()]);
+        let (code, _, err) = quarry(&a);
+        assert_ne!(code, 0, "{cmd:?}");
+        assert!(
+            err.contains("--mcap") && err.contains("run.mcap"),
+            "{cmd:?}: {err}"
+        );
+    }
 }
 
 /// Rows of a CSV with a header, as column name → values.
@@ -430,6 +445,60 @@ fn video_recording_on_pets_decodes_and_equals_the_motchallenge_output() {
                 (got - want).abs() < 1e-2,
                 "frame {frame} box {i}: {got} vs {want}"
             );
+        }
+    }
+}
+
+#[test]
+fn rgbd_recording_decodes_and_equals_the_boxes_file() {
+    let Some(py) = python() else { return };
+    let d = tmpdir("rgbd");
+    let (file, out) = (d.join("s1.mcap"), d.join("out"));
+    let (code, stdout, err) = quarry(&[
+        "--json",
+        "rgbd",
+        "--scenario",
+        "s1",
+        "--seed",
+        "0",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let summary: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let frames = summary["frames"].as_u64().unwrap();
+    assert_eq!(summary["mcap"]["topics"], 6);
+    let v = read_back(&py, &file);
+    assert_every_message_decoded(&v);
+    for topic in [
+        "/camera/color",
+        "/camera/depth",
+        "/detections",
+        "/ground_truth/detections",
+        "/odom",
+        "/ground_truth/pose",
+    ] {
+        assert_eq!(v["topics"][topic]["count"], frames, "{topic}");
+    }
+    assert_eq!(
+        v["topics"]["/camera/depth"]["schema"],
+        "sensor_msgs/msg/CompressedImage"
+    );
+    // one decoded box per boxes.txt row, in order, equal to its 2 decimals
+    let boxes = std::fs::read_to_string(out.join("boxes.txt")).unwrap();
+    let rows: Vec<Vec<f64>> = boxes
+        .lines()
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let det = v["detections"].as_array().unwrap();
+    assert_eq!(det.len(), rows.len());
+    for (r, b) in det.iter().zip(&rows) {
+        assert_eq!(r[1], "1");
+        for i in 0..4 {
+            let got = r[2 + i].as_f64().unwrap();
+            assert!((got - b[2 + i]).abs() < 6e-3, "{r} vs {b:?}");
         }
     }
 }

@@ -47,6 +47,11 @@ the file keep the preset's values, a `preset = \"name\"` key in the file picks t
 unknown keys or tables are errors. --baseline is the older spelling of --preset baseline (with \
 --config, the file is laid over the baseline preset).
 
+Recording (--mcap FILE): /camera/color and /camera/depth (PNG CompressedImage; depth in 16-bit \
+mm), /detections (the tracked box, Detection2DArray, id 1, score 1 = detection, 0 = prediction) \
+and, in the synthetic scenarios, /ground_truth/detections, /odom (TwistStamped v, omega) and \
+/ground_truth/pose: ROS 2 CDR with the schemas embedded, for Foxglove, ros2 bag and Rerun.
+
 Output: with --out DIR, boxes.txt in MOTChallenge form (frame,id,x,y,w,h,conf,-1,-1,-1; \
 1-based frames; conf 1 for a detection, 0 for a prediction) and frames/NNNNNN.png annotated \
 (green = accepted detection, yellow = partial / severe occlusion, red = MEKF prediction).
@@ -62,7 +67,8 @@ EXAMPLE:
   quarry rgbd --scenario s1 --seed 0
   quarry rgbd --scenario s1 --baseline --json
   quarry rgbd --scenario s6 --preset no-ego
-  quarry rgbd --sequence ptb/child_no1 --init 232,145,80,200 --out res/"
+  quarry rgbd --sequence ptb/child_no1 --init 232,145,80,200 --out res/
+  quarry rgbd --scenario s3 --mcap s3.mcap"
 )]
 pub struct RgbdArgs {
     /// Synthetic scenario: s1..s6 or its full name.
@@ -92,6 +98,84 @@ pub struct RgbdArgs {
     /// Output directory for boxes.txt and annotated frames.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Record the run as MCAP (ROS 2 CDR): colour and depth frames, the tracked box, ground
+    /// truth and odometry where known.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
+}
+
+/// `--mcap`: what one frame of the run records. Colour on `/camera/color` and depth (16-bit
+/// millimetres, 0 = no reading) on `/camera/depth`, both PNG `CompressedImage`s in frame
+/// `camera`; the tracked box on `/detections` (`Detection2DArray`, id `1`, score 1 for an
+/// accepted detection and 0 for a prediction, none while lost); and in the synthetic scenarios
+/// `/ground_truth/detections` (the amodal box), `/odom` (the robot's v, ω: the tracker's
+/// ego-motion input) and `/ground_truth/pose` (the robot's pose in `map`).
+struct RgbdRecorder {
+    m: crate::record::Mcap,
+}
+
+/// Per frame: the stamp, the colour pixels (RGB8) and the depth (m).
+struct RecFrame<'a> {
+    t: quarry_core::TimeUs,
+    w: u32,
+    h: u32,
+    rgb: &'a [u8],
+    depth: &'a Plane<f32>,
+}
+
+impl RgbdRecorder {
+    fn frame(
+        &mut self,
+        f: &RecFrame<'_>,
+        tracked: Option<(BBox, bool)>,
+        truth: Option<&quarry_sim::rgbd::FrameTruth>,
+    ) -> Result<(), CmdError> {
+        use crate::record::{detections, png_image};
+        let t = f.t;
+        let colour = png_image(t, "camera", f.rgb, f.w, f.h, image::ExtendedColorType::Rgb8)?;
+        self.m.write("/camera/color", t, &colour)?;
+        let mm: Vec<u8> = f
+            .depth
+            .data
+            .iter()
+            .flat_map(|&d| {
+                let v = if d.is_finite() && d > 0.0 {
+                    (d * 1000.0).round().min(65_535.0) as u16
+                } else {
+                    0
+                };
+                v.to_ne_bytes()
+            })
+            .collect();
+        let depth = png_image(t, "camera", &mm, f.w, f.h, image::ExtendedColorType::L16)?;
+        self.m.write("/camera/depth", t, &depth)?;
+        let det =
+            tracked.map(|(b, conf)| ("1".to_string(), b.to_ltwh(), f64::from(u8::from(conf))));
+        self.m
+            .write("/detections", t, &detections(t, "camera", det.into_iter()))?;
+        if let Some(g) = truth {
+            let gt = g.amodal.map(|b| ("1".to_string(), b.to_ltwh(), 1.0));
+            self.m.write(
+                "/ground_truth/detections",
+                t,
+                &detections(t, "camera", gt.into_iter()),
+            )?;
+            let odom = quarry_ros2::msgs::TwistStamped::planar(
+                crate::record::time(t),
+                "base_link",
+                g.v,
+                g.omega,
+            );
+            self.m.write("/odom", t, &odom)?;
+            let p = g.robot_pose;
+            let pose = quarry_ros2::msgs::PoseStamped {
+                header: quarry_ros2::msgs::Header::new(crate::record::time(t), "map"),
+                pose: quarry_ros2::msgs::Pose::planar(p.x, p.y, p.theta),
+            };
+            self.m.write("/ground_truth/pose", t, &pose)?;
+        }
+        Ok(())
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -105,6 +189,9 @@ struct Report {
     recovery_frames: Option<usize>,
     ms_per_frame: f64,
     summary: Option<ScenarioSummary>,
+    /// With --mcap: the recording.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mcap: Option<crate::record::McapInfo>,
     /// Stopped by Ctrl-C / SIGTERM (`frames` is then the number processed).
     interrupted: bool,
 }
@@ -289,11 +376,22 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
     let id = ScenarioId::from_name(&args.scenario)?;
     let scene = RgbdScene::new(id, args.seed)?;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
-    if let Some(w) = writer.as_mut() {
+    let mut rec = crate::record::Mcap::open(args.mcap.as_ref())?.map(|m| RgbdRecorder { m });
+    if writer.is_some() || rec.is_some() {
         // frame 0 is the initialisation frame (the tracker starts on frame 0's amodal box)
         let f0 = scene.render(0)?;
-        if let Some(b) = f0.truth.amodal {
+        if let (Some(w), Some(b)) = (writer.as_mut(), f0.truth.amodal) {
             w.init_frame(0, 640, 480, &f0.rgb, &b)?;
+        }
+        if let Some(r) = rec.as_mut() {
+            let f = RecFrame {
+                t: quarry_core::TimeUs::from_secs_f64(f0.truth.t),
+                w: 640,
+                h: 480,
+                rgb: &f0.rgb,
+                depth: &f0.depth_m,
+            };
+            r.frame(&f, f0.truth.amodal.map(|b| (b, true)), Some(&f0.truth))?;
         }
     }
     let mut werr: Option<CmdError> = None;
@@ -316,6 +414,20 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
         {
             werr = Some(e);
         }
+        if let Some(r) = rec.as_mut()
+            && werr.is_none()
+        {
+            let f = RecFrame {
+                t: quarry_core::TimeUs::from_secs_f64(smp.truth.t),
+                w: 640,
+                h: 480,
+                rgb: &smp.rgb,
+                depth: &smp.depth_m,
+            };
+            if let Err(e) = r.frame(&f, o.bbox.map(|b| (b, o.confirmed)), Some(&smp.truth)) {
+                werr = Some(e);
+            }
+        }
     })?;
     if let Some(e) = werr {
         return Err(e);
@@ -333,6 +445,7 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
         recovery_frames: s.recovery_frames,
         ms_per_frame: s.ms_per_frame,
         summary: Some(s.clone()),
+        mcap: rec.map(|r| r.m.finish()).transpose()?,
         interrupted: false,
     };
     out.emit(&rep, || {
@@ -373,6 +486,7 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
     let given = intrinsics_given(args)?;
     let mut tr: Option<RgbdPersonTracker> = None;
     let mut writer = args.out.as_deref().map(Writer::new).transpose()?;
+    let mut rec = crate::record::Mcap::open(args.mcap.as_ref())?.map(|m| RgbdRecorder { m });
     let (mut total_ms, mut n) = (0.0, 0usize);
     crate::interrupt::install();
     let mut processed = 0usize;
@@ -402,6 +516,16 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
             if let Some(wr) = writer.as_mut() {
                 wr.frame(k, w, h, &frame.rgb, &o, None)?;
             }
+            if let Some(r) = rec.as_mut() {
+                let f = RecFrame {
+                    t: stamp.t,
+                    w,
+                    h,
+                    rgb: &frame.rgb,
+                    depth: &frame.depth_m,
+                };
+                r.frame(&f, o.bbox.map(|b| (b, o.confirmed)), None)?;
+            }
         } else {
             let mut c = cfg.clone();
             c.intrinsics = sequence_intrinsics(cfg, given, w, h)?;
@@ -409,6 +533,16 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
             t.init(stamp, &frame, init)?;
             if let Some(wr) = writer.as_mut() {
                 wr.init_frame(k, w, h, &frame.rgb, &init)?;
+            }
+            if let Some(r) = rec.as_mut() {
+                let f = RecFrame {
+                    t: stamp.t,
+                    w,
+                    h,
+                    rgb: &frame.rgb,
+                    depth: &frame.depth_m,
+                };
+                r.frame(&f, Some((init, true)), None)?;
             }
             tr = Some(t);
         }
@@ -426,6 +560,7 @@ fn run_sequence(args: &RgbdArgs, dir: &Path, cfg: &RgbdPersonConfig, out: &Outpu
         recovery_frames: None,
         ms_per_frame: if n > 0 { total_ms / n as f64 } else { 0.0 },
         summary: None,
+        mcap: rec.map(|r| r.m.finish()).transpose()?,
         interrupted: crate::interrupt::requested(),
     };
     out.emit(&rep, || {
@@ -540,6 +675,7 @@ mod tests {
             cfg: ConfigArgs::default(),
             noisy_odometry: false,
             out,
+            mcap: None,
         }
     }
 

@@ -112,64 +112,26 @@ fn detections_msg(
     t: quarry_core::TimeUs,
     boxes: impl Iterator<Item = (i64, [f64; 4])>,
 ) -> quarry_ros2::msgs::Detection2DArray {
-    use quarry_ros2::msgs::{
-        BoundingBox2D, Detection2D, Detection2DArray, Header, ObjectHypothesis,
-        ObjectHypothesisWithPose, Point2D, Pose2D,
-    };
-    let header = Header::new(crate::record::time(t), "camera");
-    Detection2DArray {
-        header: header.clone(),
-        detections: boxes
-            .map(|(id, b)| Detection2D {
-                header: header.clone(),
-                results: vec![ObjectHypothesisWithPose {
-                    hypothesis: ObjectHypothesis {
-                        class_id: "person".into(),
-                        score: 1.0,
-                    },
-                    ..ObjectHypothesisWithPose::default()
-                }],
-                bbox: BoundingBox2D {
-                    center: Pose2D {
-                        position: Point2D {
-                            x: b[0] - 1.0 + 0.5 * b[2],
-                            y: b[1] - 1.0 + 0.5 * b[3],
-                        },
-                        theta: 0.0,
-                    },
-                    size_x: b[2],
-                    size_y: b[3],
-                },
-                id: id.to_string(),
-            })
-            .collect(),
-    }
+    crate::record::detections(
+        t,
+        "camera",
+        boxes.map(|(id, b)| (id.to_string(), [b[0] - 1.0, b[1] - 1.0, b[2], b[3]], 1.0)),
+    )
 }
 
 /// A grey frame as a PNG CompressedImage (fast compression).
 fn png_msg(
     t: quarry_core::TimeUs,
     grey: &Plane<u8>,
-) -> Result<quarry_ros2::msgs::CompressedImage, String> {
-    use image::ImageEncoder;
-    let mut data = Vec::new();
-    image::codecs::png::PngEncoder::new_with_quality(
-        &mut data,
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Sub,
-    )
-    .write_image(
+) -> Result<quarry_ros2::msgs::CompressedImage, crate::output::CmdError> {
+    crate::record::png_image(
+        t,
+        "camera",
         &grey.data,
         grey.width,
         grey.height,
         image::ExtendedColorType::L8,
     )
-    .map_err(|e| format!("PNG encoding for --mcap: {e}"))?;
-    Ok(quarry_ros2::msgs::CompressedImage {
-        header: quarry_ros2::msgs::Header::new(crate::record::time(t), "camera"),
-        format: "png".into(),
-        data,
-    })
 }
 
 /// Mean stage times per frame, milliseconds.
