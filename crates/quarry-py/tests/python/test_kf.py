@@ -63,7 +63,7 @@ def test_filter_sequence_matches_filterpy():
 def test_errors_are_exceptions():
     F, Q, H, R = cv_model()
     with pytest.raises(ValueError, match="F"):
-        quarry.KalmanFilter(np.zeros(4), np.eye(4), np.eye(3), Q, H, R)
+        quarry.KalmanFilter(np.zeros(4), np.eye(4), np.ones((4, 3)), Q, H, R)
     with pytest.raises(TypeError, match="x"):
         quarry.KalmanFilter(np.zeros(4, dtype=np.int32), np.eye(4), F, Q, H, R)
     kf = quarry.KalmanFilter(np.zeros(4), np.eye(4), F, Q, H, R)
