@@ -98,6 +98,22 @@ fn wait_all(procs: &mut Procs, dir: &Path, limit: Duration) -> Vec<String> {
         .collect()
 }
 
+/// Waits (at most a minute) until the server, the first process, listens on `port` (once its
+/// session is open); panics with its output if it exits first.
+fn wait_listening(procs: &mut Procs, port: u16, dir: &Path) {
+    let t0 = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            t0.elapsed() < Duration::from_mins(1),
+            "server never listened"
+        );
+        if let Some(st) = procs.0[0].1.try_wait().unwrap() {
+            panic!("server exited early: {st}\n{}", logs(dir, "server"));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 fn read(p: &Path) -> String {
     std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
@@ -148,17 +164,7 @@ fn three_node_processes_and_the_server_reproduce_the_in_process_run() {
         .0
         .push((s("server"), spawn(exe, &args, &dir, "server")));
     // the server listens once its session is open
-    let t0 = Instant::now();
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            t0.elapsed() < Duration::from_mins(1),
-            "server never listened"
-        );
-        if let Some(st) = procs.0[0].1.try_wait().unwrap() {
-            panic!("server exited early: {st}");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    wait_listening(&mut procs, port, &dir);
     for k in 0..3 {
         let mut args = vec![
             s("lidar-node"),
@@ -252,17 +258,7 @@ fn a_ros2_peer_feeds_the_node_and_decodes_the_servers_tracks() {
     procs
         .0
         .push((s("server"), spawn(exe, &args, &dir, "server")));
-    let t0 = Instant::now();
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            t0.elapsed() < Duration::from_mins(1),
-            "server never listened"
-        );
-        if let Some(st) = procs.0[0].1.try_wait().unwrap() {
-            panic!("server exited early: {st}\n{}", logs(&dir, "server"));
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    wait_listening(&mut procs, port, &dir);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/ros2_peer.py");
     let msg_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../quarry-ros2/msg");
     let ready = dir.join("peer.ready");
