@@ -35,6 +35,11 @@ pub enum TargetWeight {
     MarginalLikelihood,
     /// The paper's eq. (11) in every mode.
     PaperEq11,
+    /// No target factor: the particles are weighted by the landmark detections alone, so that
+    /// target detections (and clutter among them) cannot move the pose estimate. Targets are
+    /// still associated and updated inside every particle. For recordings whose "targets" are
+    /// poorly modelled movers (MRCLAM's other robots).
+    None,
 }
 
 /// Robot motion model of the particles.

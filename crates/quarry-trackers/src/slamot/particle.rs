@@ -254,6 +254,7 @@ pub(super) fn particle_epoch<S: LandmarkStore<Gaussian<2>>>(
         Ok(weights_eq11(&LikelihoodMatrix::new(ll_ungated.clone())?))
     };
     let log_wt = match (cfg.target_weight, cfg.association) {
+        (TargetWeight::None, _) => 0.0,
         (TargetWeight::ModeDefault, AssociationMode::Paper) | (TargetWeight::PaperEq11, _) => {
             eq11()?
         }

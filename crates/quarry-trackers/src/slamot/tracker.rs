@@ -882,6 +882,53 @@ mod tests {
         (neff / n, err / n)
     }
 
+    /// With `TargetWeight::None` the target detections change the targets but not the particle
+    /// weights: a run with and without them gives the same poses and map; with the mode's own
+    /// weight they differ.
+    #[test]
+    fn target_weight_none_keeps_targets_out_of_the_pose() {
+        use super::super::config::TargetWeight;
+        let run = |weight: TargetWeight, with_targets: bool| {
+            let cfg = SlamotConfig {
+                particles: 30,
+                target_weight: weight,
+                control_noise: [0.3, 0.3],
+                ..SlamotConfig::mrclam()
+            };
+            let mut t = SlamotTracker::new(cfg, Pose2::identity(), 5).unwrap();
+            let mut poses = Vec::new();
+            for k in 1..=60u64 {
+                let observe = k % 3 == 0;
+                let obs = SlamotObservation {
+                    dt: 0.05,
+                    odometry: (0.5, 0.1),
+                    observe,
+                    landmark_obs: if observe {
+                        vec![(LandmarkId(1), [3.0 - 0.02 * k as f64, 0.2])]
+                    } else {
+                        vec![]
+                    },
+                    target_obs: if observe && with_targets {
+                        vec![[2.0, -0.1 + 0.001 * k as f64], [4.0, 0.3]]
+                    } else {
+                        vec![]
+                    },
+                };
+                t.step(Stamp::from_frame(k, 0.05), &obs).unwrap();
+                let p = t.pose_estimate();
+                poses.push((p.x, p.y, p.theta));
+            }
+            (poses, t.map_estimate(), t.slots_created())
+        };
+        let (a, ma, _) = run(TargetWeight::None, false);
+        let (b, mb, slots) = run(TargetWeight::None, true);
+        assert!(slots > 0, "the targets were tracked");
+        assert_eq!(a, b);
+        assert_eq!(ma, mb);
+        let (c, _, _) = run(TargetWeight::ModeDefault, true);
+        assert_ne!(a, c, "with the target factor the targets move the pose");
+    }
+
     #[test]
     fn measurement_proposal_keeps_more_particles_alive() {
         let (ess1, err1) = arc_run(Proposal::Motion);
