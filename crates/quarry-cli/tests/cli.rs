@@ -882,3 +882,31 @@ fn video_on_pets_if_present() {
     assert!(v["metrics"]["gt"].as_u64().unwrap() > 0);
     assert!(v["tracks"].as_u64().unwrap() >= 1, "{v}");
 }
+
+#[test]
+fn rgbd_frames_limits_a_scenario_run_and_refuses_absurd_values() {
+    let (code, stdout, err) = quarry(&["--json", "rgbd", "--scenario", "s1", "--frames", "6"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["frames"], 6);
+    assert!(v["center_err_px"].as_f64().unwrap().is_finite());
+    for bad in ["0", "1", "many"] {
+        let (code, _, err) = quarry(&["rgbd", "--scenario", "s1", "--frames", bad]);
+        assert_eq!(code, 2, "--frames {bad}: {err}");
+        assert!(err.contains("--frames"), "--frames {bad}: {err}");
+    }
+    let (code, _, err) = quarry(&[
+        "rgbd",
+        "--sequence",
+        "x",
+        "--init",
+        "1,1,2,2",
+        "--frames",
+        "5",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--frames") && err.contains("--sequence"),
+        "{err}"
+    );
+}

@@ -461,6 +461,8 @@ fn rgbd_recording_decodes_and_equals_the_boxes_file() {
         "s1",
         "--seed",
         "0",
+        "--frames",
+        "40",
         "--out",
         out.to_str().unwrap(),
         "--mcap",
@@ -469,6 +471,8 @@ fn rgbd_recording_decodes_and_equals_the_boxes_file() {
     assert_eq!(code, 0, "{err}");
     let summary: Value = serde_json::from_str(stdout.trim()).unwrap();
     let frames = summary["frames"].as_u64().unwrap();
+    // --frames 40: frame 0 (the initialisation) and 39 tracked frames, not the scenario's 360
+    assert_eq!(frames, 40);
     assert_eq!(summary["mcap"]["topics"], 6);
     let v = read_back(&py, &file);
     assert_every_message_decoded(&v);

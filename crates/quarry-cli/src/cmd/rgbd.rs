@@ -9,7 +9,7 @@ use clap::Args;
 use image::{Rgb, RgbImage};
 use quarry_core::{BBox, EgoMotion, PinholeIntrinsics, Plane, SingleTargetTracker, Stamp};
 use quarry_data::ptb::{DepthFormat, PtbSequence, depth_metres};
-use quarry_repro::rgbd::{OdometryFeed, ScenarioSummary, run_scenario, run_scenario_frames};
+use quarry_repro::rgbd::{OdometryFeed, ScenarioSummary, run_scenario_frames};
 use quarry_sim::rgbd::{RgbdScene, ScenarioId};
 use quarry_trackers::rgbd_person::{
     OcclusionState, Preset, RgbdPersonConfig, RgbdPersonTracker, TrackOutput,
@@ -68,7 +68,7 @@ EXAMPLE:
   quarry rgbd --scenario s1 --baseline --json
   quarry rgbd --scenario s6 --preset no-ego
   quarry rgbd --sequence ptb/child_no1 --init 232,145,80,200 --out res/
-  quarry rgbd --scenario s3 --mcap s3.mcap"
+  quarry rgbd --scenario s3 --frames 60 --mcap s3.mcap"
 )]
 pub struct RgbdArgs {
     /// Synthetic scenario: s1..s6 or its full name.
@@ -95,6 +95,11 @@ pub struct RgbdArgs {
     /// Feed the synthetic run the noisy odometry (5 % proportional).
     #[arg(long)]
     pub noisy_odometry: bool,
+    /// Synthetic scenarios: process only the first N frames (frame 0, the initialisation,
+    /// included; a quick look, or a short recording with --mcap); the scores cover those frames.
+    /// Default: the whole scenario.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..), conflicts_with = "sequence")]
+    pub frames: Option<u32>,
     /// Output directory for boxes.txt and annotated frames.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -400,7 +405,8 @@ pub fn run(args: &RgbdArgs, out: &Output) -> CmdResult {
     } else {
         OdometryFeed::Exact
     };
-    let (s, recs) = run_scenario(&scene, args.seed, &cfg, odo, |smp, o| {
+    let n_frames = args.frames.map_or(scene.len(), |n| n as usize);
+    let (s, recs) = run_scenario_frames(&scene, args.seed, &cfg, odo, n_frames, |smp, o| {
         if let Some(w) = writer.as_mut()
             && werr.is_none()
             && let Err(e) = w.frame(
@@ -674,6 +680,7 @@ mod tests {
             baseline: false,
             cfg: ConfigArgs::default(),
             noisy_odometry: false,
+            frames: None,
             out,
             mcap: None,
         }
