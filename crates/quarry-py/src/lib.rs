@@ -22,6 +22,9 @@
 //! assert!(x[0] > 0.0 && x[0] < 1.0);
 //! ```
 
+pub mod args;
+pub mod assoc;
+
 use nalgebra::{DMatrix, DVector};
 use numpy::{
     PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -309,5 +312,6 @@ impl KalmanFilter {
 #[pymodule]
 fn quarry(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<KalmanFilter>()?;
+    assoc::register(m)?;
     Ok(())
 }
