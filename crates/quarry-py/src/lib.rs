@@ -24,6 +24,7 @@
 
 pub mod args;
 pub mod assoc;
+pub mod metrics;
 
 use nalgebra::{DMatrix, DVector};
 use numpy::{
@@ -313,5 +314,6 @@ impl KalmanFilter {
 fn quarry(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<KalmanFilter>()?;
     assoc::register(m)?;
+    metrics::register(m)?;
     Ok(())
 }
