@@ -25,6 +25,7 @@
 pub mod args;
 pub mod assoc;
 pub mod metrics;
+pub mod vision;
 
 use nalgebra::{DMatrix, DVector};
 use numpy::{
@@ -315,5 +316,6 @@ fn quarry(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<KalmanFilter>()?;
     assoc::register(m)?;
     metrics::register(m)?;
+    vision::register(m)?;
     Ok(())
 }
