@@ -12,7 +12,9 @@
 //! - [`metrics`]: CLEAR MOT, IDF1, HOTA on arrays and MOTChallenge files, OSPA, GOSPA
 //!   (quarry-eval);
 //! - [`vision`]: Gaussian blur, regional minima, watershed, SIFT with OpenCV-shaped outputs
-//!   (quarry-vision).
+//!   (quarry-vision);
+//! - [`cloud`]: MeanShift, ICP, the rigid fit, the chi-square background model and the
+//!   variance chi-square test (quarry-cloud).
 //!
 //! The numerical pieces defined here are usable from Rust as well:
 //!
@@ -32,6 +34,7 @@
 
 pub mod args;
 pub mod assoc;
+pub mod cloud;
 pub mod filter;
 pub mod metrics;
 pub mod vision;
@@ -45,5 +48,6 @@ fn quarry(m: &Bound<'_, PyModule>) -> PyResult<()> {
     assoc::register(m)?;
     metrics::register(m)?;
     vision::register(m)?;
+    cloud::register(m)?;
     Ok(())
 }
