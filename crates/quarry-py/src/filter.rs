@@ -14,8 +14,8 @@ use numpy::{PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use quarry_core::{Gaussian, MeasurementModel, MotionModel, Pose2};
 use quarry_filter::{
-    ConstantVelocity2, ConstantVelocity3, CvNoise, Ekf, FilterError, Position2, Position3,
-    RangeBearing, RangeBearingCv, UpdateForm, ekf,
+    ConstantVelocity2, ConstantVelocity3, CvNoise, FilterError, Position2, Position3, RangeBearing,
+    RangeBearingCv, UpdateForm, ekf,
 };
 
 /// A linear motion model `x' = F x + w`, `w ~ N(0, Q)` (the time step is baked into `F`, `Q`).
@@ -152,33 +152,100 @@ trait KfCore: Send + Sync {
     fn p(&self) -> Vec<f64>;
 }
 
-type FixedKf<const D: usize, const Z: usize> = Ekf<D, Z, LinearMotion<D>, LinearMeasurement<D, Z>>;
+/// The fixed-size Kalman filter: quarry-filter's [`ekf::predict`] / [`ekf::update`] (Joseph
+/// form) on [`LinearMotion`] / [`LinearMeasurement`].
+struct FixedKf<const D: usize, const Z: usize> {
+    state: Gaussian<D>,
+    motion: LinearMotion<D>,
+    meas: LinearMeasurement<D, Z>,
+}
+
+/// `K ν` with the operation order of quarry-filter's update (`small::mul_vec`), so that the
+/// steady-state path below gives the same bits as the full update.
+#[inline]
+fn gain_times<const D: usize, const Z: usize>(
+    k: &SMatrix<f64, D, Z>,
+    nu: &SVector<f64, Z>,
+) -> SVector<f64, D> {
+    let mut out = SVector::<f64, D>::zeros();
+    for j in 0..Z {
+        for i in 0..D {
+            out[i] += k[(i, j)] * nu[j];
+        }
+    }
+    out
+}
+
+impl<const D: usize, const Z: usize> FixedKf<D, Z> {
+    /// One full predict + update; returns the predicted state as well.
+    #[inline]
+    fn full_step(&mut self, z: &SVector<f64, Z>) -> Result<Gaussian<D>, FilterError> {
+        let pred = ekf::predict(&self.state, &self.motion, &(), 1.0)?;
+        let (post, _) = ekf::update(&pred, &self.meas, z, UpdateForm::Joseph)?;
+        self.state = post;
+        Ok(pred)
+    }
+}
 
 impl<const D: usize, const Z: usize> KfCore for FixedKf<D, Z> {
     #[inline]
     fn predict(&mut self) -> Result<(), String> {
-        Ekf::predict(self, &(), 1.0).map_err(|e| e.to_string())
+        self.state =
+            ekf::predict(&self.state, &self.motion, &(), 1.0).map_err(|e| e.to_string())?;
+        Ok(())
     }
     #[inline]
     fn update(&mut self, z: &[f64]) -> Result<(), String> {
-        Ekf::update(self, &SVector::<f64, Z>::from_column_slice(z))
-            .map(|_| ())
-            .map_err(|e| e.to_string())
+        let zv = SVector::<f64, Z>::from_column_slice(z);
+        let (post, _) = ekf::update(&self.state, &self.meas, &zv, UpdateForm::Joseph)
+            .map_err(|e| e.to_string())?;
+        self.state = post;
+        Ok(())
     }
+    /// Full steps until the covariance reaches its floating-point fixed point (the posterior
+    /// `P` of a step equals the previous one bit for bit — the Riccati recursion of a linear
+    /// model does not depend on the data, so every later `P` and gain are then the same bits),
+    /// then only the mean: `x⁻ = F x`, `x = x⁻ + K (z − H x⁻)`, with the operations of the full
+    /// update in the same order, so the output is bit-identical to full steps.
     fn run(&mut self, zs: &[f64], _m: usize, out: &mut Vec<f64>) -> Result<(), String> {
-        for z in zs.chunks_exact(Z) {
-            Ekf::predict(self, &(), 1.0).map_err(|e| e.to_string())?;
-            Ekf::update(self, &SVector::<f64, Z>::from_column_slice(z))
-                .map_err(|e| e.to_string())?;
-            out.extend_from_slice(self.mean().as_slice());
+        let err = |e: FilterError| e.to_string();
+        let mut chunks = zs.chunks_exact(Z);
+        let mut steady: Option<SMatrix<f64, D, Z>> = None;
+        for z in chunks.by_ref() {
+            let zv = SVector::<f64, Z>::from_column_slice(z);
+            let before = self.state.cov;
+            let pred = self.full_step(&zv).map_err(err)?;
+            out.extend_from_slice(self.state.mean.as_slice());
+            if self.state.cov == before {
+                let mp = ekf::MeasurementPrediction::new(&pred, &self.meas).map_err(err)?;
+                steady = Some(mp.gain);
+                break;
+            }
         }
+        let Some(gain) = steady else {
+            return Ok(());
+        };
+        let mut mean = self.state.mean;
+        for z in chunks {
+            let zv = SVector::<f64, Z>::from_column_slice(z);
+            let xp = self.motion.transition(&mean, &(), 1.0);
+            let nu = self.meas.residual(&zv, &self.meas.predict(&xp));
+            let next = xp + gain_times(&gain, &nu);
+            if !next.iter().all(|v| v.is_finite()) {
+                self.state.mean = mean;
+                return Err(FilterError::NonFiniteResult { what: "update" }.to_string());
+            }
+            mean = next;
+            out.extend_from_slice(mean.as_slice());
+        }
+        self.state.mean = mean;
         Ok(())
     }
     fn x(&self) -> Vec<f64> {
-        self.mean().as_slice().to_vec()
+        self.state.mean.as_slice().to_vec()
     }
     fn p(&self) -> Vec<f64> {
-        self.cov().transpose().as_slice().to_vec()
+        self.state.cov.transpose().as_slice().to_vec()
     }
 }
 
@@ -234,10 +301,11 @@ fn fixed<const D: usize, const Z: usize>(
         h: smat::<Z, D>(m[2]),
         r: smat::<Z, Z>(m[3]),
     };
-    let kf = Ekf::new(gaussian::<D>(x, p)?, motion, meas)
-        .map_err(|e| value_error("P", e))?
-        .with_form(UpdateForm::Joseph);
-    Ok(Box::new(kf))
+    Ok(Box::new(FixedKf {
+        state: gaussian::<D>(x, p)?,
+        motion,
+        meas,
+    }))
 }
 
 /// `$body` with `const $D` set to the runtime dimension `$n` when it is one of the listed

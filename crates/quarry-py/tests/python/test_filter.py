@@ -240,3 +240,32 @@ def test_filter_errors_name_the_argument():
         kf.filter_sequence(np.zeros((5, 3)))
     with pytest.raises(ValueError, match="zs"):
         kf.filter_sequence(np.zeros((5, 4))[:, ::2])
+
+
+@pytest.mark.parametrize("n,m,seed", [(0, 0, 0), (4, 2, 0), (2, 1, 1), (6, 3, 2), (3, 2, 3)])
+def test_filter_sequence_is_bit_identical_to_steps(n, m, seed):
+    """filter_sequence switches to a mean-only recursion once P reaches its floating-point fixed
+    point; the output must be the same bits as calling step() (always the full update).
+    n = 0: the 4-state CV model of the benchmark, whose P reaches the fixed point."""
+    rng = np.random.default_rng(seed)
+    if n == 0:
+        n, m = 4, 2
+        F, Q = (a[np.ix_(PERM, PERM)] for a in cv_fq(0.1, 0.5))
+        H, R = np.eye(2, 4), 0.25 * np.eye(2)
+    else:
+        F, Q, H, R = random_model(rng, n, m)
+        F = 0.97 * F / max(1.0, np.abs(np.linalg.eigvals(F)).max())  # a stable model
+    zs = rng.normal(size=(1500, m))
+    a = quarry.KalmanFilter(np.zeros(n), np.eye(n), F, Q, H, R)
+    b = quarry.KalmanFilter(np.zeros(n), np.eye(n), F, Q, H, R)
+    seq = a.filter_sequence(zs)
+    steps = []
+    for z in zs:
+        b.step(z)
+        steps.append(b.x)
+    assert np.array_equal(seq, np.array(steps))
+    assert np.array_equal(a.P, b.P) and np.array_equal(a.x, b.x)
+    if np.array_equal(F, cv_fq(0.1, 0.5)[0][np.ix_(PERM, PERM)]):
+        P = b.P  # P did reach its fixed point, so the fast path ran
+        b.step(zs[0])
+        assert np.array_equal(P, b.P)
