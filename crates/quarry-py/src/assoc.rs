@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, SMatrix, SVector};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use quarry_assoc::assign::{self as qassign, Assignment};
-use quarry_assoc::{ChiSquareGate, Gnn, GnnCost, Jipda, Jpda, Method, Pda, Solver};
+use quarry_assoc::{Gnn, GnnCost, Jipda, Jpda, Method, Pda, Solver};
 use quarry_core::{Association, Associator, Gaussian, LikelihoodMatrix, TrackPrior};
 
 /// Builds an `(rows, cols)` numpy array from a row-major vector.
@@ -36,8 +36,8 @@ fn to_dmatrix(v: &[f64], rows: usize, cols: usize) -> DMatrix<f64> {
 #[pyfunction]
 #[pyo3(signature = (prob_gate, dim))]
 pub fn chi2_threshold(prob_gate: f64, dim: usize) -> PyResult<f64> {
-    let g = ChiSquareGate::new(prob_gate).map_err(map_err("chi2_threshold"))?;
-    g.threshold(dim).map_err(map_err("chi2_threshold"))
+    let dim = u32::try_from(dim).map_err(|_| value_error("dim", "is too large"))?;
+    quarry_assoc::chi2::chi2_quantile(dim, prob_gate).map_err(map_err("chi2_threshold"))
 }
 
 /// Squared Mahalanobis distances and Gaussian log-likelihoods of one track against all
