@@ -21,3 +21,11 @@ def bench_data():
             pytest.fail(msg)
         pytest.skip(msg)
     return d
+
+
+# CI runs a fixed set of examples (reproducible runs); elsewhere hypothesis explores new ones.
+from hypothesis import settings  # noqa: E402
+
+settings.register_profile("ci", derandomize=True)
+if os.environ.get("QUARRY_REQUIRE_PYTHON"):
+    settings.load_profile("ci")
