@@ -349,3 +349,32 @@ class VarianceChi2Test:
         """Foreground flags (beams,) of ranges against the window."""
     def push(self, ranges: F64) -> None:
         """Push a scan into the window, replacing the oldest."""
+
+# ---------------------------------------------------------------------------------- trackers
+
+def track_video(
+    frames: U8,
+    preset: Literal["paper", "robust"] = "robust",
+    person_size: tuple[float, float] | None = None,
+    config_toml: str | None = None,
+) -> F64:
+    """The video tracker of spec 004 (watershed + SIFT pools) on frames (T, H, W) uint8.
+
+    Returns rows frame, id, left, top, width, height (MOTChallenge convention, 1-based)."""
+
+def track_lidar(
+    scans: F64,
+    stamps: F64,
+    angle_min: float,
+    angle_increment: float,
+    range_min: float = 0.1,
+    range_max: float = 30.0,
+    scan_period: float = 0.025,
+    pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    preset: Literal["faithful", "literal", "kf-gnn", "jipda"] = "faithful",
+    config_toml: str | None = None,
+    gap_factor: float = 3.0,
+) -> F64:
+    """The laser people tracker of spec 003 on one scanner's scans (T, n_beams) in metres.
+
+    Returns rows scan, t, id, x, y, vx, vy, alpha, rms (world metres)."""

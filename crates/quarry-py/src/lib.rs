@@ -14,7 +14,9 @@
 //! - [`vision`]: Gaussian blur, regional minima, watershed, SIFT with OpenCV-shaped outputs
 //!   (quarry-vision);
 //! - [`cloud`]: MeanShift, ICP, the rigid fit, the chi-square background model and the
-//!   variance chi-square test (quarry-cloud).
+//!   variance chi-square test (quarry-cloud);
+//! - [`trackers`]: the video tracker (spec 004) on a frame array and the laser people tracker
+//!   (spec 003) on recorded scans (quarry-trackers).
 //!
 //! The numerical pieces defined here are usable from Rust as well:
 //!
@@ -37,6 +39,7 @@ pub mod assoc;
 pub mod cloud;
 pub mod filter;
 pub mod metrics;
+pub mod trackers;
 pub mod vision;
 
 use pyo3::prelude::*;
@@ -49,5 +52,6 @@ fn quarry(m: &Bound<'_, PyModule>) -> PyResult<()> {
     metrics::register(m)?;
     vision::register(m)?;
     cloud::register(m)?;
+    trackers::register(m)?;
     Ok(())
 }

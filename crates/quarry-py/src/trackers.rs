@@ -1,0 +1,222 @@
+//! Tracker bindings (quarry-trackers): the video tracker of spec 004 on a frame array and the
+//! laser people tracker of spec 003 on recorded scans, each returning its tracks as rows.
+//!
+//! The configuration is a named preset of the tracker, optionally overlaid with TOML text (the
+//! same keys as the CLI's `--config` files).
+
+use crate::args::{self, Values, data, map_err, value_error};
+use crate::assoc::rows_to_py;
+use numpy::{PyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use quarry_core::{
+    MultiTargetTracker, Plane, PolarScan, Pose2, ScanGeometry, SensorId, Stamp, TimeUs,
+};
+use quarry_trackers::lidar_people::{LidarPeopleConfig, run_recorded};
+use quarry_trackers::watershed_sift::{WatershedSiftConfig, WatershedSiftTracker};
+use quarry_trackers::{PresetName, TrackerConfig};
+
+/// A tracker configuration from a preset name and optional TOML laid over it.
+fn config<C: TrackerConfig>(preset: &str, config_toml: Option<&str>) -> PyResult<C> {
+    let p = C::Preset::parse(preset).map_err(|e| value_error("preset", e))?;
+    match config_toml {
+        Some(text) => C::from_toml(text, Some(p)).map_err(|e| value_error("config_toml", e)),
+        None => {
+            let c = C::preset(p);
+            c.validate().map_err(|e| value_error("preset", e))?;
+            Ok(c)
+        }
+    }
+}
+
+/// Runs the automatic multi-object video tracker (spec 004: watershed segmentation, region
+/// mapping, moving points, weighted SIFT pools) on a grey sequence.
+///
+/// `frames` `(T, H, W)` uint8. `preset` `"paper"` or `"robust"`; `person_size` `(w, h)` pixels of
+/// a typical person (sets the box, the blur and the near distance, as the CLI's
+/// `--person-size`); `config_toml` TOML overlaid on the preset. Returns the tracks as float64
+/// rows `frame, id, left, top, width, height` in the MOTChallenge convention (frames and pixels
+/// 1-based, as `quarry video` writes them), ready for `mot_metrics`.
+#[pyfunction]
+#[pyo3(signature = (frames, preset = "robust", person_size = None, config_toml = None))]
+pub fn track_video<'py>(
+    py: Python<'py>,
+    frames: &Bound<'py, PyAny>,
+    preset: &str,
+    person_size: Option<(f64, f64)>,
+    config_toml: Option<&str>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let a = args::array::<u8>(
+        frames,
+        "frames",
+        "(T, H, W)",
+        &[None, None, None],
+        false,
+        Values::Finite,
+    )?;
+    let (h, w) = (a.shape()[1], a.shape()[2]);
+    let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(value_error("frames", "frames are too large"));
+    };
+    let mut cfg: WatershedSiftConfig = config::<WatershedSiftConfig>(preset, config_toml)?;
+    if let Some((pw, ph)) = person_size {
+        if !(pw.is_finite() && ph.is_finite() && pw > 0.0 && ph > 0.0) {
+            return Err(value_error(
+                "person_size",
+                format!("({pw}, {ph}) must be positive"),
+            ));
+        }
+        cfg = cfg.with_person_size(pw, ph);
+        cfg.validate().map_err(|e| value_error("person_size", e))?;
+    }
+    let pix = data(&a);
+    let rows = py
+        .detach(|| -> Result<Vec<f64>, String> {
+            let mut tracker = WatershedSiftTracker::new(cfg).map_err(|e| e.to_string())?;
+            let mut rows = Vec::new();
+            for (k, f) in pix.chunks_exact(w * h).enumerate() {
+                let frame = Plane {
+                    width: w32,
+                    height: h32,
+                    data: f.to_vec(),
+                };
+                let reports = tracker
+                    .step(Stamp::from_frame(k as u64, 1.0), &frame)
+                    .map_err(|e| format!("frame {}: {e}", k + 1))?;
+                for r in reports {
+                    let Some(bb) = r.bbox else { continue };
+                    let [l, tp, bw, bh] = bb.to_ltwh();
+                    #[allow(clippy::cast_precision_loss)]
+                    rows.extend_from_slice(&[
+                        (k + 1) as f64,
+                        f64::from(r.id.0),
+                        l + 1.0,
+                        tp + 1.0,
+                        bw,
+                        bh,
+                    ]);
+                }
+            }
+            Ok(rows)
+        })
+        .map_err(map_err("track_video"))?;
+    let n = rows.len() / 6;
+    rows_to_py(py, rows, n, 6)
+}
+
+/// Runs the laser people tracker of spec 003 (chi-square background, MeanShift, ICP ellipse
+/// contours, Table 1 tracking) on the recorded scans of one scanner placed at `pose` in the
+/// world.
+///
+/// `scans` `(T, n_beams)` float64 ranges in metres (0 or out of range = no return), `stamps`
+/// `(T,)` seconds; the beam geometry (`angle_min`, `angle_increment` in radians, ranges in
+/// metres, `scan_period` seconds). `preset` `"faithful"`, `"literal"`, `"kf-gnn"` or `"jipda"`;
+/// `config_toml` TOML overlaid on it. The first `window_m / 2` scans fill the background window
+/// and carry no tracks. Returns float64 rows `scan, t, id, x, y, vx, vy, alpha, rms` (scan =
+/// 0-based index, world metres).
+#[pyfunction]
+#[pyo3(signature = (scans, stamps, angle_min, angle_increment, range_min = 0.1, range_max = 30.0, scan_period = 0.025, pose = (0.0, 0.0, 0.0), preset = "faithful", config_toml = None, gap_factor = 3.0))]
+#[allow(clippy::too_many_arguments)]
+pub fn track_lidar<'py>(
+    py: Python<'py>,
+    scans: &Bound<'py, PyAny>,
+    stamps: &Bound<'py, PyAny>,
+    angle_min: f64,
+    angle_increment: f64,
+    range_min: f64,
+    range_max: f64,
+    scan_period: f64,
+    pose: (f64, f64, f64),
+    preset: &str,
+    config_toml: Option<&str>,
+    gap_factor: f64,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let s = args::array::<f64>(
+        scans,
+        "scans",
+        "(T, n_beams)",
+        &[None, None],
+        false,
+        Values::Finite,
+    )?;
+    let (t, nb) = (s.shape()[0], s.shape()[1]);
+    let st = args::array::<f64>(
+        stamps,
+        "stamps",
+        &format!("({t},)"),
+        &[Some(t)],
+        false,
+        Values::Finite,
+    )?;
+    let n_beams = u32::try_from(nb).map_err(|_| value_error("scans", "too many beams"))?;
+    let geometry = ScanGeometry {
+        n_beams,
+        angle_min,
+        angle_increment,
+        range_min,
+        range_max,
+        scan_period,
+    };
+    let cfg: LidarPeopleConfig = config::<LidarPeopleConfig>(preset, config_toml)?;
+    let pose = Pose2::new(
+        args::finite("pose", pose.0)?,
+        args::finite("pose", pose.1)?,
+        args::finite("pose", pose.2)?,
+    );
+    let mut polar = Vec::with_capacity(t);
+    for (k, (ranges, &ts)) in data(&s).chunks_exact(nb).zip(data(&st)).enumerate() {
+        let mm = ranges
+            .iter()
+            .map(|&r| {
+                let v = (r * 1000.0).round();
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                if v > 0.0 && v <= f64::from(u16::MAX) {
+                    v as u16
+                } else {
+                    0
+                }
+            })
+            .collect();
+        #[allow(clippy::cast_possible_truncation)]
+        let stamp = TimeUs((ts * 1e6).round() as i64);
+        let seq = u32::try_from(k).unwrap_or(u32::MAX);
+        polar.push(
+            PolarScan::try_new(SensorId(0), seq, stamp, mm, geometry)
+                .map_err(|e| value_error("scans", e))?,
+        );
+    }
+    let run = py
+        .detach(|| run_recorded(&cfg, &geometry, pose, &polar, gap_factor))
+        .map_err(map_err("track_lidar"))?;
+    // processed scans map back to their input index through their (strictly increasing) stamps
+    let mut index = std::collections::HashMap::new();
+    for (k, sc) in polar.iter().enumerate() {
+        index.entry(sc.t.0).or_insert(k);
+    }
+    let mut rows = Vec::new();
+    for f in &run.frames {
+        let k = index.get(&f.t.0).copied().unwrap_or(usize::MAX);
+        for tr in &f.tracks {
+            #[allow(clippy::cast_precision_loss)]
+            rows.extend_from_slice(&[
+                k as f64,
+                f.t.0 as f64 * 1e-6,
+                f64::from(tr.id),
+                tr.x,
+                tr.y,
+                tr.vx,
+                tr.vy,
+                tr.alpha,
+                tr.rms,
+            ]);
+        }
+    }
+    let n = rows.len() / 9;
+    rows_to_py(py, rows, n, 9)
+}
+
+/// Registers the tracker functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(track_video, m)?)?;
+    m.add_function(wrap_pyfunction!(track_lidar, m)?)?;
+    Ok(())
+}
