@@ -10,12 +10,12 @@ use quarry_assoc::{Gnn, GnnCost, Jipda, Jpda, Method, Pda, Solver};
 use quarry_core::{Association, Associator, Gaussian, LikelihoodMatrix, TrackPrior};
 
 /// Builds an `(rows, cols)` numpy array from a row-major vector.
-pub fn rows_to_py<'py>(
-    py: Python<'py>,
+pub fn rows_to_py(
+    py: Python<'_>,
     v: Vec<f64>,
     rows: usize,
     cols: usize,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
+) -> PyResult<Bound<'_, PyArray2<f64>>> {
     PyArray1::from_vec(py, v).reshape([rows, cols])
 }
 

@@ -22,12 +22,12 @@ fn int_cell(name: &str, col: &str, row: usize, v: f64) -> PyResult<i64> {
     Ok(v as i64)
 }
 
+/// Rows grouped by frame number: frame -> [(id, values)].
+type ByFrame<const K: usize> = BTreeMap<i64, Vec<(i64, [f64; K])>>;
+
 /// Groups `(N, 2 + K)` rows `frame, id, v_1..v_K` by frame: frame number -> [(id, values)].
-fn group<const K: usize>(
-    name: &str,
-    rows: &[f64],
-) -> PyResult<BTreeMap<i64, Vec<(i64, [f64; K])>>> {
-    let mut out: BTreeMap<i64, Vec<(i64, [f64; K])>> = BTreeMap::new();
+fn group<const K: usize>(name: &str, rows: &[f64]) -> PyResult<ByFrame<K>> {
+    let mut out: ByFrame<K> = BTreeMap::new();
     for (r, row) in rows.chunks_exact(2 + K).enumerate() {
         let frame = int_cell(name, "frame", r, row[0])?;
         let id = int_cell(name, "id", r, row[1])?;
@@ -39,10 +39,7 @@ fn group<const K: usize>(
 }
 
 /// Frames over the union of frame numbers of both sides, in increasing order.
-fn frames<const K: usize>(
-    gt: &BTreeMap<i64, Vec<(i64, [f64; K])>>,
-    hyp: &BTreeMap<i64, Vec<(i64, [f64; K])>>,
-) -> Vec<Frame<[f64; K]>> {
+fn frames<const K: usize>(gt: &ByFrame<K>, hyp: &ByFrame<K>) -> Vec<Frame<[f64; K]>> {
     let mut keys: Vec<i64> = gt.keys().chain(hyp.keys()).copied().collect();
     keys.sort_unstable();
     keys.dedup();
@@ -207,6 +204,7 @@ pub fn mot_metrics<'py>(
 /// `"mot15"` or `"mot16"`. Returns the same dict as `mot_metrics`.
 #[pyfunction]
 #[pyo3(signature = (gt_path, res_path, threshold = 0.5, gt_style = "auto"))]
+#[allow(clippy::needless_pass_by_value)] // pyo3 extracts owned paths
 pub fn mot_metrics_files<'py>(
     py: Python<'py>,
     gt_path: std::path::PathBuf,

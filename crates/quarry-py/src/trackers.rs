@@ -18,13 +18,12 @@ use quarry_trackers::{PresetName, TrackerConfig};
 /// A tracker configuration from a preset name and optional TOML laid over it.
 fn config<C: TrackerConfig>(preset: &str, config_toml: Option<&str>) -> PyResult<C> {
     let p = C::Preset::parse(preset).map_err(|e| value_error("preset", e))?;
-    match config_toml {
-        Some(text) => C::from_toml(text, Some(p)).map_err(|e| value_error("config_toml", e)),
-        None => {
-            let c = C::preset(p);
-            c.validate().map_err(|e| value_error("preset", e))?;
-            Ok(c)
-        }
+    if let Some(text) = config_toml {
+        C::from_toml(text, Some(p)).map_err(|e| value_error("config_toml", e))
+    } else {
+        let c = C::preset(p);
+        c.validate().map_err(|e| value_error("preset", e))?;
+        Ok(c)
     }
 }
 

@@ -30,10 +30,10 @@ fn plane<T: Checked>(ob: &Bound<'_, PyAny>, name: &str) -> PyResult<Plane<T>> {
 }
 
 /// A plane as a `(H, W)` numpy array.
-fn plane_to_py<'py, T: numpy::Element + Copy>(
-    py: Python<'py>,
+fn plane_to_py<T: numpy::Element + Copy>(
+    py: Python<'_>,
     p: Plane<T>,
-) -> PyResult<Bound<'py, PyArray2<T>>> {
+) -> PyResult<Bound<'_, PyArray2<T>>> {
     let (w, h) = (p.width as usize, p.height as usize);
     PyArray1::from_vec(py, p.data).reshape([h, w])
 }
@@ -85,7 +85,7 @@ fn connectivity(c: u8) -> PyResult<Connectivity> {
 }
 
 /// Labels `u32` -> int32 array (label counts are far below 2³¹ for any image that fits).
-fn labels_to_py<'py>(py: Python<'py>, p: Plane<u32>) -> PyResult<Bound<'py, PyArray2<i32>>> {
+fn labels_to_py<'py>(py: Python<'py>, p: &Plane<u32>) -> PyResult<Bound<'py, PyArray2<i32>>> {
     plane_to_py(py, p.map(|&l| i32::try_from(l).unwrap_or(i32::MAX)))
 }
 
@@ -122,7 +122,7 @@ pub fn py_regional_minima<'py>(
         .detach(|| regional_minima(&p, conn))
         .map_err(map_err("regional_minima"))?);
     let n = m.len();
-    Ok((labels_to_py(py, m.labels)?, n))
+    Ok((labels_to_py(py, &m.labels)?, n))
 }
 
 /// Seeds from a marker image: labels 1..=K, with a record per label.
@@ -203,7 +203,7 @@ pub fn watershed<'py>(
         }
         .map_err(map_err("watershed"))?
     });
-    labels_to_py(py, seg.labels)
+    labels_to_py(py, &seg.labels)
 }
 
 /// numpy's dtype for keypoints, with `cv2.KeyPoint`'s fields.
