@@ -378,3 +378,17 @@ def track_lidar(
     """The laser people tracker of spec 003 on one scanner's scans (T, n_beams) in metres.
 
     Returns rows scan, t, id, x, y, vx, vy, alpha, rms (world metres)."""
+
+def track_rgbd(
+    rgb: U8,
+    depth: F32,
+    init_box: tuple[float, float, float, float],
+    preset: str = "paper",
+    config_toml: str | None = None,
+    fps: float = 30.0,
+) -> F64:
+    """The RGB-D person tracker of spec 001 (static camera) from an initial (left, top, w, h).
+
+    rgb (T, H, W, 3) uint8, depth (T, H, W) float32 metres (0 / NaN = none). Returns one row
+    per frame: frame (1-based), left, top, width, height (NaN when lost), state (0 normal ..
+    5 lost)."""

@@ -21,6 +21,8 @@ pub enum Values {
     FiniteOrNegInf,
     /// Finite values or `+inf` (assignment costs: `+inf` = forbidden pair).
     FiniteOrPosInf,
+    /// Finite values or NaN (depth images: NaN = no reading).
+    FiniteOrNan,
 }
 
 /// A value type the checks understand (integers are always finite).
@@ -152,6 +154,7 @@ pub fn check_values<T: Checked>(slice: &[T], name: &str, values: Values) -> PyRe
                 Values::Finite => false,
                 Values::FiniteOrNegInf => v == f64::NEG_INFINITY,
                 Values::FiniteOrPosInf => v == f64::INFINITY,
+                Values::FiniteOrNan => v.is_nan(),
             }
     };
     // a branch-free sweep first (vectorised: this runs over every pixel of an image), the
@@ -169,6 +172,7 @@ pub fn check_values<T: Checked>(slice: &[T], name: &str, values: Values) -> PyRe
         Values::Finite => "",
         Values::FiniteOrNegInf => " (only -inf is allowed)",
         Values::FiniteOrPosInf => " (only +inf is allowed)",
+        Values::FiniteOrNan => " (only NaN is allowed)",
     };
     Err(value_error(
         name,

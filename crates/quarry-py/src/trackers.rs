@@ -213,9 +213,109 @@ pub fn track_lidar<'py>(
     rows_to_py(py, rows, n, 9)
 }
 
+/// Runs the RGB-D person tracker of spec 001 (patch multi-cue appearance model, ego-motion
+/// EKF, occlusion handling) on a sequence from an initial box, for a static camera.
+///
+/// `rgb` `(T, H, W, 3)` uint8, `depth` `(T, H, W)` float32 metres registered to the colour image
+/// (0 or NaN = no depth), `init_box` `(left, top, width, height)` of the person in frame 0
+/// (pixels, 0-based). `preset` `"paper"`, `"strict"`, `"baseline"`, `"no-depth-kernel"`,
+/// `"single-patch"` ...; `config_toml` TOML overlaid on it (the camera is its `[intrinsics]`
+/// table, Kinect v1 640×480 by default); `fps` the frame rate. Returns one float64 row per
+/// frame: `frame (1-based), left, top, width, height, state` where the box is NaN when the
+/// target is lost and `state` is 0 normal, 1 appearance change, 2 partial, 3 severe, 4 full
+/// occlusion, 5 lost.
+#[pyfunction]
+#[pyo3(signature = (rgb, depth, init_box, preset = "paper", config_toml = None, fps = 30.0))]
+pub fn track_rgbd<'py>(
+    py: Python<'py>,
+    rgb: &Bound<'py, PyAny>,
+    depth: &Bound<'py, PyAny>,
+    init_box: (f64, f64, f64, f64),
+    preset: &str,
+    config_toml: Option<&str>,
+    fps: f64,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    use quarry_core::{BBox, EgoMotion, SingleTargetTracker};
+    use quarry_trackers::rgbd_person::{OcclusionState, RgbdPersonConfig, RgbdPersonTracker};
+    use quarry_vision::RgbdFrame;
+    let c = args::array::<u8>(
+        rgb,
+        "rgb",
+        "(T, H, W, 3)",
+        &[None, None, None, Some(3)],
+        false,
+        Values::Finite,
+    )?;
+    let (t, h, w) = (c.shape()[0], c.shape()[1], c.shape()[2]);
+    let shape = format!("({t}, {h}, {w})");
+    let d = args::array::<f32>(
+        depth,
+        "depth",
+        &shape,
+        &[Some(t), Some(h), Some(w)],
+        false,
+        Values::FiniteOrNan,
+    )?;
+    let (l, tp, bw, bh) = init_box;
+    for v in [l, tp, bw, bh] {
+        args::finite("init_box", v)?;
+    }
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(value_error("fps", format!("{fps} must be positive")));
+    }
+    let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(value_error("rgb", "frames are too large"));
+    };
+    let cfg: RgbdPersonConfig = config::<RgbdPersonConfig>(preset, config_toml)?;
+    let (cs, ds) = (data(&c), data(&d));
+    let rows = py
+        .detach(|| -> Result<Vec<f64>, String> {
+            let mut tracker = RgbdPersonTracker::new(cfg).map_err(|e| e.to_string())?;
+            let mut rows = Vec::with_capacity(t * 6);
+            for k in 0..t {
+                let depth_m = Plane {
+                    width: w32,
+                    height: h32,
+                    data: ds[k * w * h..(k + 1) * w * h].to_vec(),
+                };
+                let rgb = cs[k * w * h * 3..(k + 1) * w * h * 3].to_vec();
+                let frame = RgbdFrame::new(w32, h32, rgb, depth_m, EgoMotion::None)
+                    .map_err(|e| format!("frame {}: {e}", k + 1))?;
+                let stamp = Stamp::from_frame(k as u64, 1.0 / fps);
+                #[allow(clippy::cast_precision_loss)]
+                let n = (k + 1) as f64;
+                if k == 0 {
+                    let b = BBox::from_ltwh(l, tp, bw, bh);
+                    tracker
+                        .init(stamp, &frame, b)
+                        .map_err(|e| format!("init_box: {e}"))?;
+                    rows.extend_from_slice(&[n, l, tp, bw, bh, 0.0]);
+                    continue;
+                }
+                let out = tracker
+                    .step(stamp, &frame)
+                    .map_err(|e| format!("frame {}: {e}", k + 1))?;
+                let state = match out.state {
+                    OcclusionState::Normal => 0.0,
+                    OcclusionState::AppearanceChange => 1.0,
+                    OcclusionState::PartialOcclusion => 2.0,
+                    OcclusionState::SevereOcclusion => 3.0,
+                    OcclusionState::FullOcclusion => 4.0,
+                    OcclusionState::Lost => 5.0,
+                };
+                let [bl, bt, bw2, bh2] = out.bbox.map_or([f64::NAN; 4], |b| b.to_ltwh());
+                rows.extend_from_slice(&[n, bl, bt, bw2, bh2, state]);
+            }
+            Ok(rows)
+        })
+        .map_err(map_err("track_rgbd"))?;
+    rows_to_py(py, rows, t, 6)
+}
+
 /// Registers the tracker functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(track_video, m)?)?;
     m.add_function(wrap_pyfunction!(track_lidar, m)?)?;
+    m.add_function(wrap_pyfunction!(track_rgbd, m)?)?;
     Ok(())
 }

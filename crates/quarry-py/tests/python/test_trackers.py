@@ -134,3 +134,27 @@ def test_tracker_errors_name_the_argument():
         quarry.track_lidar(np.full((5, 10), np.nan), np.zeros(5), 0.0, 0.1)
     with pytest.raises(ValueError, match="config_toml"):
         quarry.track_lidar(np.zeros((5, 10)), np.arange(5.0), 0.0, 0.1, config_toml="bandwidth = -1")
+
+
+def test_rgbd_tracker_follows_a_moving_person(bench_data):
+    """bench-data's RGB-D frame, shifted 4 px right per frame: the box of person A follows."""
+    import cv2
+    rgb = cv2.cvtColor(cv2.imread(str(bench_data / "rgbd_rgb.png")), cv2.COLOR_BGR2RGB)
+    depth = cv2.imread(str(bench_data / "rgbd_depth.png"), cv2.IMREAD_UNCHANGED).astype(np.float32) / 1000
+    T = 8
+    R = np.stack([np.roll(rgb, 4 * k, axis=1) for k in range(T)])
+    D = np.stack([np.roll(depth, 4 * k, axis=1) for k in range(T)])
+    rows = quarry.track_rgbd(R, D, (60.0, 150.0, 100.0, 200.0))
+    assert rows.shape == (T, 6)
+    cx = rows[:, 1] + rows[:, 3] / 2
+    err = np.abs(cx - (110 + 4 * np.arange(T)))
+    print(f"rgbd tracker: centre x error per frame {np.round(err, 1)} px")
+    assert np.all(err < 8.0) and np.all(rows[:, 5] == 0)
+    D[3][:] = np.nan  # a frame without depth is not an error
+    quarry.track_rgbd(R, D, (60.0, 150.0, 100.0, 200.0))
+    with pytest.raises(ValueError, match="init_box"):
+        quarry.track_rgbd(R, D, (5000.0, 150.0, 100.0, 200.0))
+    with pytest.raises(ValueError, match="depth"):
+        quarry.track_rgbd(R, D[:, :, :10], (60.0, 150.0, 100.0, 200.0))
+    with pytest.raises(ValueError, match="depth"):
+        quarry.track_rgbd(R, np.full_like(D, np.inf), (60.0, 150.0, 100.0, 200.0))
