@@ -392,3 +392,26 @@ def track_rgbd(
     rgb (T, H, W, 3) uint8, depth (T, H, W) float32 metres (0 / NaN = none). Returns one row
     per frame: frame (1-based), left, top, width, height (NaN when lost), state (0 normal ..
     5 lost)."""
+
+class MrclamResult(TypedDict):
+    tracks: F64
+    robot_est: F64
+    robot_true: F64
+    epoch_t: F64
+    map: F64
+    ospa: float
+    gospa: float
+    map_err: float
+    assoc_accuracy: float
+    ate: float
+    ms_per_step: float
+
+def track_mrclam(
+    directory: str | PathLike[str],
+    robot: int = 1,
+    particles: int = 50,
+    seed: int = 0,
+    max_frames: int | None = None,
+) -> MrclamResult:
+    """The RBPF SLAM + JIPDA tracker of spec 000 on one robot of an MRCLAM dataset directory,
+    scored against Vicon. tracks rows: t, id, x, y, vx, vy, existence."""

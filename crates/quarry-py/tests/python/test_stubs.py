@@ -9,7 +9,7 @@ import pytest
 import quarry
 
 STUBS = ast.parse((pathlib.Path(__file__).resolve().parents[2] / "quarry.pyi").read_text())
-HELPERS = {"MotSummary", "Gospa", "IcpResult", "KeypointArray", "MatchArray", "F64", "F32", "I64", "I32", "U8"}
+HELPERS = {"MotSummary", "Gospa", "IcpResult", "MrclamResult", "KeypointArray", "MatchArray", "F64", "F32", "I64", "I32", "U8"}
 
 
 def stub_defs():

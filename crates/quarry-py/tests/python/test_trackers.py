@@ -158,3 +158,26 @@ def test_rgbd_tracker_follows_a_moving_person(bench_data):
         quarry.track_rgbd(R, D[:, :, :10], (60.0, 150.0, 100.0, 200.0))
     with pytest.raises(ValueError, match="depth"):
         quarry.track_rgbd(R, np.full_like(D, np.inf), (60.0, 150.0, 100.0, 200.0))
+
+
+def test_slamot_on_mrclam_if_present(bench_data):
+    """The spec 000 tracker on robot 1 of MRCLAM dataset 6 (the first 8000 frames, 20
+    particles), through quarry_repro's runner: deterministic from the seed, the robot's own
+    trajectory within decimetres of Vicon, a map and confirmed target tracks."""
+    d = bench_data.parent / "data" / "mrclam-6"
+    if not (d / "Barcodes.dat").exists():
+        pytest.skip(f"{d} not found (optional data)")
+    r = quarry.track_mrclam(d, robot=1, particles=20, seed=0, max_frames=8000)
+    again = quarry.track_mrclam(str(d), robot=1, particles=20, seed=0, max_frames=8000)
+    np.testing.assert_array_equal(r["robot_est"], again["robot_est"])
+    np.testing.assert_array_equal(r["tracks"], again["tracks"])
+    err = np.linalg.norm(r["robot_est"][:, :2] - r["robot_true"][:, :2], axis=1)
+    print(f"MRCLAM-6 robot 1, 8000 frames: {len(err)} epochs, robot error mean {err.mean():.3f} m, "
+          f"{len(r['map'])} landmarks (error {r['map_err']:.3f} m), {len(r['tracks'])} track rows, "
+          f"OSPA {r['ospa']:.3f}")
+    assert err.mean() < 0.5 and len(r["map"]) >= 3
+    assert len(r["tracks"]) > 0 and np.all((r["tracks"][:, 6] >= 0) & (r["tracks"][:, 6] <= 1))
+    with pytest.raises(ValueError, match="Barcodes|No such file|not found"):
+        quarry.track_mrclam(d / "missing", robot=1)
+    with pytest.raises(ValueError, match="particles"):
+        quarry.track_mrclam(d, particles=0)
