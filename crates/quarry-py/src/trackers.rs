@@ -326,14 +326,14 @@ pub fn track_rgbd<'py>(
 #[pyfunction]
 #[pyo3(signature = (directory, robot = 1, particles = 50, seed = 0, max_frames = None))]
 #[allow(clippy::needless_pass_by_value)] // pyo3 extracts an owned path
-pub fn track_mrclam<'py>(
-    py: Python<'py>,
+pub fn track_mrclam(
+    py: Python<'_>,
     directory: std::path::PathBuf,
     robot: u32,
     particles: usize,
     seed: u64,
     max_frames: Option<usize>,
-) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     use pyo3::types::PyDict;
     if particles == 0 {
         return Err(value_error("particles", "must be at least 1"));
