@@ -198,6 +198,18 @@ pub fn finite(name: &str, v: f64) -> PyResult<f64> {
     }
 }
 
+/// A finite pose `(x, y, theta)` argument.
+///
+/// # Errors
+/// `ValueError` naming `name` when a component is NaN or infinite.
+pub fn pose(name: &str, p: (f64, f64, f64)) -> PyResult<quarry_core::Pose2> {
+    Ok(quarry_core::Pose2::new(
+        finite(name, p.0)?,
+        finite(name, p.1)?,
+        finite(name, p.2)?,
+    ))
+}
+
 /// Maps an error to a `ValueError` with its Rust message, prefixed by the call name.
 pub fn map_err<E: std::fmt::Display>(call: &'static str) -> impl Fn(E) -> PyErr {
     move |e| PyValueError::new_err(format!("{call}: {e}"))

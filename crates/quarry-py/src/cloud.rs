@@ -3,15 +3,13 @@
 
 use crate::args::{self, Values, data, map_err, value_error};
 use crate::assoc::rows_to_py;
-use numpy::{PyArray1, PyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use quarry_cloud::background::{ChiSquareConfig, VarianceChi2Test as QVariance};
 use quarry_cloud::cluster::{Kernel, MeanShift, Seeding};
 use quarry_cloud::icp::{Icp2d, rigid_2d};
-use quarry_core::{
-    BackgroundModel, BeamLabel, Point2, PolarScan, Pose2, ScanGeometry, SensorId, TimeUs,
-};
+use quarry_core::{BackgroundModel, BeamLabel, Point2, PolarScan, ScanGeometry, SensorId, TimeUs};
 
 /// Reads `(N, 2)` float64 points (`N` may be 0 when `allow_empty`).
 fn points(ob: &Bound<'_, PyAny>, name: &str, allow_empty: bool) -> PyResult<Vec<Point2>> {
@@ -183,11 +181,7 @@ pub fn icp_2d<'py>(
     if let Some(v) = delta_stop {
         icp.delta_stop = v;
     }
-    let init = Pose2::new(
-        args::finite("init", init.0)?,
-        args::finite("init", init.1)?,
-        args::finite("init", init.2)?,
-    );
+    let init = args::pose("init", init)?;
     let r = py
         .detach(|| icp.register_detailed(&m, &d, init))
         .map_err(map_err("icp_2d"))?;
@@ -198,6 +192,29 @@ pub fn icp_2d<'py>(
     out.set_item("iters", r.iters)?;
     out.set_item("converged", r.converged)?;
     Ok(out)
+}
+
+/// A scan of ranges in metres (0, out of range or beyond 65.535 m = no return) at `t` seconds,
+/// as quarry's millimetre [`PolarScan`].
+///
+/// # Errors
+/// `ValueError` naming `ranges` when the geometry is unusable or the beam count is wrong.
+pub fn polar_scan(ranges: &[f64], t: f64, seq: u32, geometry: ScanGeometry) -> PyResult<PolarScan> {
+    let mm = ranges
+        .iter()
+        .map(|&r| {
+            let v = (r * 1000.0).round();
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            if v > 0.0 && v <= f64::from(u16::MAX) {
+                v as u16
+            } else {
+                0
+            }
+        })
+        .collect();
+    #[allow(clippy::cast_possible_truncation)]
+    let stamp = TimeUs((t * 1e6).round() as i64);
+    PolarScan::try_new(SensorId(0), seq, stamp, mm, geometry).map_err(|e| value_error("ranges", e))
 }
 
 /// Label codes returned by the background models.
@@ -294,22 +311,7 @@ impl ChiSquareBackground {
             Values::Finite,
         )?;
         let t = args::finite("t", t)?;
-        let mm: Vec<u16> = data(&a)
-            .iter()
-            .map(|&r| {
-                let v = (r * 1000.0).round();
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                if v > 0.0 && v <= f64::from(u16::MAX) {
-                    v as u16
-                } else {
-                    0
-                }
-            })
-            .collect();
-        #[allow(clippy::cast_possible_truncation)]
-        let stamp = TimeUs((t * 1e6).round() as i64);
-        let scan = PolarScan::try_new(SensorId(0), self.seq, stamp, mm, self.geometry)
-            .map_err(|e| value_error("ranges", e))?;
+        let scan = polar_scan(data(&a), t, self.seq, self.geometry)?;
         self.seq = self.seq.wrapping_add(1);
         let inner = &mut self.inner;
         let labels = py
@@ -369,14 +371,7 @@ impl VarianceChi2Test {
         ranges: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let n = self.beams;
-        let a = args::array::<f64>(
-            ranges,
-            "ranges",
-            &format!("({n},)"),
-            &[Some(n)],
-            false,
-            Values::Finite,
-        )?;
+        let a = self.ranges(ranges)?;
         let mut out = Vec::with_capacity(n);
         self.inner
             .test(data(&a), &mut out)
@@ -386,18 +381,25 @@ impl VarianceChi2Test {
 
     /// Pushes `ranges` `(beams,)` into the window, replacing the oldest scan.
     fn push(&mut self, ranges: &Bound<'_, PyAny>) -> PyResult<()> {
+        let a = self.ranges(ranges)?;
+        self.inner
+            .push(data(&a))
+            .map_err(|e| value_error("ranges", e))
+    }
+}
+
+impl VarianceChi2Test {
+    /// Reads one scan `(beams,)` of ranges.
+    fn ranges<'py>(&self, ob: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
         let n = self.beams;
-        let a = args::array::<f64>(
-            ranges,
+        args::array::<f64>(
+            ob,
             "ranges",
             &format!("({n},)"),
             &[Some(n)],
             false,
             Values::Finite,
-        )?;
-        self.inner
-            .push(data(&a))
-            .map_err(|e| value_error("ranges", e))
+        )
     }
 }
 

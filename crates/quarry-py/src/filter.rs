@@ -12,7 +12,7 @@ use crate::assoc::rows_to_py;
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use numpy::{PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use quarry_core::{Gaussian, MeasurementModel, MotionModel, Pose2};
+use quarry_core::{Gaussian, MeasurementModel, MotionModel};
 use quarry_filter::{
     ConstantVelocity2, ConstantVelocity3, CvNoise, FilterError, Position2, Position3, RangeBearing,
     RangeBearingCv, UpdateForm, ekf,
@@ -670,7 +670,7 @@ pub fn ekf_update<'py>(
                 n,
                 D,
                 do_update::<D, 2, _>(py, &xs, &ps, &zs, &m),
-                unreachable!(),
+                Err(value_error("x", "unsupported state dimension")),
                 [2, 4, 6]
             )
         }
@@ -682,18 +682,14 @@ pub fn ekf_update<'py>(
                 n,
                 D,
                 do_update::<D, 3, _>(py, &xs, &ps, &zs, &m),
-                unreachable!(),
+                Err(value_error("x", "unsupported state dimension")),
                 [3, 5, 6]
             )
         }
         "range_bearing" => {
             need_dim(measurement, n, &[2, 4])?;
             need_z(2)?;
-            let pose = Pose2::new(
-                args::finite("sensor", sensor.0)?,
-                args::finite("sensor", sensor.1)?,
-                args::finite("sensor", sensor.2)?,
-            );
+            let pose = args::pose("sensor", sensor)?;
             let point = RangeBearing::with_cov(pose, r_arg::<2>(R)?).map_err(&e)?;
             if n == 2 {
                 do_update::<2, 2, _>(py, &xs, &ps, &zs, &point)

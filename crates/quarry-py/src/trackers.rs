@@ -8,9 +8,7 @@ use crate::args::{self, Values, data, map_err, value_error};
 use crate::assoc::rows_to_py;
 use numpy::{PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use quarry_core::{
-    MultiTargetTracker, Plane, PolarScan, Pose2, ScanGeometry, SensorId, Stamp, TimeUs,
-};
+use quarry_core::{MultiTargetTracker, Plane, ScanGeometry, Stamp};
 use quarry_trackers::lidar_people::{LidarPeopleConfig, run_recorded};
 use quarry_trackers::watershed_sift::{WatershedSiftConfig, WatershedSiftTracker};
 use quarry_trackers::{PresetName, TrackerConfig};
@@ -156,32 +154,11 @@ pub fn track_lidar<'py>(
         scan_period,
     };
     let cfg: LidarPeopleConfig = config::<LidarPeopleConfig>(preset, config_toml)?;
-    let pose = Pose2::new(
-        args::finite("pose", pose.0)?,
-        args::finite("pose", pose.1)?,
-        args::finite("pose", pose.2)?,
-    );
+    let pose = args::pose("pose", pose)?;
     let mut polar = Vec::with_capacity(t);
     for (k, (ranges, &ts)) in data(&s).chunks_exact(nb).zip(data(&st)).enumerate() {
-        let mm = ranges
-            .iter()
-            .map(|&r| {
-                let v = (r * 1000.0).round();
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                if v > 0.0 && v <= f64::from(u16::MAX) {
-                    v as u16
-                } else {
-                    0
-                }
-            })
-            .collect();
-        #[allow(clippy::cast_possible_truncation)]
-        let stamp = TimeUs((ts * 1e6).round() as i64);
         let seq = u32::try_from(k).unwrap_or(u32::MAX);
-        polar.push(
-            PolarScan::try_new(SensorId(0), seq, stamp, mm, geometry)
-                .map_err(|e| value_error("scans", e))?,
-        );
+        polar.push(crate::cloud::polar_scan(ranges, ts, seq, geometry)?);
     }
     let run = py
         .detach(|| run_recorded(&cfg, &geometry, pose, &polar, gap_factor))
