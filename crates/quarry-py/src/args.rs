@@ -180,7 +180,7 @@ pub fn check_values<T: Checked>(slice: &[T], name: &str, values: Values) -> PyRe
     ))
 }
 
-/// The contiguous data of an array accepted by [`array`].
+/// The contiguous data of an array accepted by [`array()`].
 pub fn data<'a, T: Checked>(a: &'a PyReadonlyArrayDyn<'_, T>) -> &'a [T] {
     // `array` checked C-contiguity, so this cannot fail; an empty slice is the safe fallback.
     a.as_slice().unwrap_or(&[])

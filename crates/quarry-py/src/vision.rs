@@ -62,15 +62,30 @@ pub fn gaussian_blur<'py>(
             .detach(|| gaussian_blur_f32(&p, sigma))
             .map_err(map_err("gaussian_blur"))?;
         Ok(plane_to_py(py, out)?.into_any())
+    } else if is_dtype::<f64>(img) {
+        let p = plane::<f64>(img, "img")?;
+        let out = py
+            .detach(|| gaussian_blur_f64(&p, sigma))
+            .map_err(map_err("gaussian_blur"))?;
+        Ok(plane_to_py(py, out)?.into_any())
     } else {
-        {
-            let p = plane::<f64>(img, "img")?;
-            let out = py
-                .detach(|| gaussian_blur_f64(&p, sigma))
-                .map_err(map_err("gaussian_blur"))?;
-            Ok(plane_to_py(py, out)?.into_any())
-        }
+        Err(dtype_error(img, "img", "float32 or float64"))
     }
+}
+
+/// The `TypeError` for an argument that is not an array of one of the `allowed` dtypes.
+fn dtype_error(ob: &Bound<'_, PyAny>, name: &str, allowed: &str) -> PyErr {
+    let got = ob.cast::<PyUntypedArray>().map_or_else(
+        |_| {
+            ob.get_type()
+                .name()
+                .map_or_else(|_| "?".to_string(), |n| n.to_string())
+        },
+        |a| format!("dtype {}", a.dtype()),
+    );
+    PyTypeError::new_err(format!(
+        "{name}: expected a numpy.ndarray of {allowed}, got {got}"
+    ))
 }
 
 fn connectivity(c: u8) -> PyResult<Connectivity> {
@@ -98,9 +113,11 @@ macro_rules! by_relief {
         } else if is_dtype::<u8>($ob) {
             let $p = plane::<u8>($ob, $name)?;
             $body
-        } else {
+        } else if is_dtype::<f64>($ob) {
             let $p = plane::<f64>($ob, $name)?;
             $body
+        } else {
+            return Err(dtype_error($ob, $name, "float32, float64 or uint8"));
         }
     };
 }
