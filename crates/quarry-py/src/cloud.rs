@@ -194,12 +194,23 @@ pub fn icp_2d<'py>(
     Ok(out)
 }
 
+/// Largest accepted |time stamp|, seconds (about 31 700 years: Unix times fit, and differences of
+/// two stamps in microseconds stay far inside `i64`).
+pub const MAX_STAMP_S: f64 = 1e12;
+
 /// A scan of ranges in metres (0, out of range or beyond 65.535 m = no return) at `t` seconds,
 /// as quarry's millimetre [`PolarScan`].
 ///
 /// # Errors
-/// `ValueError` naming `ranges` when the geometry is unusable or the beam count is wrong.
+/// `ValueError` naming `ranges` when the geometry is unusable or the beam count is wrong, or `t`
+/// when it is not finite or beyond [`MAX_STAMP_S`].
 pub fn polar_scan(ranges: &[f64], t: f64, seq: u32, geometry: ScanGeometry) -> PyResult<PolarScan> {
+    if !(t.is_finite() && t.abs() <= MAX_STAMP_S) {
+        return Err(value_error(
+            "t",
+            format!("time stamp {t} s is not finite or beyond ±1e12 s"),
+        ));
+    }
     let mm = ranges
         .iter()
         .map(|&r| {

@@ -158,6 +158,12 @@ pub fn track_lidar<'py>(
     let mut polar = Vec::with_capacity(t);
     for (k, (ranges, &ts)) in data(&s).chunks_exact(nb).zip(data(&st)).enumerate() {
         let seq = u32::try_from(k).unwrap_or(u32::MAX);
+        if ts.abs() > crate::cloud::MAX_STAMP_S {
+            return Err(value_error(
+                "stamps",
+                format!("scan {k}: {ts} s is beyond ±1e12 s"),
+            ));
+        }
         polar.push(crate::cloud::polar_scan(ranges, ts, seq, geometry)?);
     }
     let run = py

@@ -67,6 +67,9 @@ CALLS = {
     "icp_2d": (2, lambda a, b: quarry.icp_2d(a, b)),
     "variance_chi2": (2, lambda a, b: quarry.VarianceChi2Test(a).test(b)),
     "chi2_background": (1, lambda a: quarry.ChiSquareBackground(5, 0.0, 0.1).classify(a, 0.0)),
+    "track_video": (1, lambda a: quarry.track_video(a, person_size=(3.0, 5.0))),
+    "track_lidar": (2, lambda a, b: quarry.track_lidar(a, b, 0.0, 0.1, config_toml="window_m = 2")),
+    "track_rgbd": (2, lambda a, b: quarry.track_rgbd(a, b, (0.0, 0.0, 2.0, 2.0))),
 }
 
 
@@ -112,6 +115,7 @@ SHAPED = {
     "icp_2d": [(6, 2), (5, 2)],
     "variance_chi2": [(3, 5), (5,)],
     "chi2_background": [(5,)],
+    "track_lidar": [(6, 9), (6,)],
 }
 
 

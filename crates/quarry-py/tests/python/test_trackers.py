@@ -181,3 +181,12 @@ def test_slamot_on_mrclam_if_present(bench_data):
         quarry.track_mrclam(d / "missing", robot=1)
     with pytest.raises(ValueError, match="particles"):
         quarry.track_mrclam(d, particles=0)
+
+
+def test_lidar_stamps_beyond_range_are_errors():
+    """Found by test_fuzz: a stamp of 1e300 s saturated to i64 microseconds and overflowed the
+    tracker's time difference (a Rust panic); the binding now refuses such stamps."""
+    with pytest.raises(ValueError, match="stamps"):
+        quarry.track_lidar(np.ones((3, 9)), np.array([0.0, 1e300, -1e300]), 0.0, 0.1)
+    with pytest.raises(ValueError, match="t"):
+        quarry.ChiSquareBackground(9, 0.0, 0.1).classify(np.ones(9), 1e13)
