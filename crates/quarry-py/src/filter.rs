@@ -6,6 +6,8 @@
 //! [`quarry_filter::ekf::update`], Joseph form) on the linear models [`LinearMotion`] and
 //! [`LinearMeasurement`], on fixed-size (stack, unrolled) matrices for state dimensions 1 to 6
 //! and measurement dimensions 1 to 4; other sizes use [`LinearModel`] on dynamic matrices.
+//! `filter_sequence` on the fixed-size path propagates only the mean once the covariance has
+//! reached its floating-point fixed point (bit-identical output, see `FixedKf::run`).
 
 use crate::args::{self, Values, data, map_err, value_error};
 use crate::assoc::rows_to_py;
@@ -553,6 +555,9 @@ pub fn ekf_predict<'py>(
     Q: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<StateOut<'py>> {
     let (xs, ps, n) = state_args(x, P)?;
+    if !(dt.is_finite() && dt >= 0.0) {
+        return Err(value_error("dt", format!("{dt} must be finite and >= 0")));
+    }
     match motion {
         "cv2" => {
             need_dim(motion, n, &[4])?;
@@ -580,7 +585,7 @@ pub fn ekf_predict<'py>(
                         f: smat(data(&f)),
                         q: smat(data(&qq)),
                     };
-                    do_predict::<D, _>(py, &xs, &ps, &m, dt.max(0.0))
+                    do_predict::<D, _>(py, &xs, &ps, &m, 1.0)
                 },
                 Err(value_error(
                     "x",
