@@ -19,34 +19,6 @@ fn cdylib() -> Option<PathBuf> {
     .find(|p| p.exists())
 }
 
-/// Installs `requirements-nodeps.txt` with `pip install --no-deps` into the venv, once per
-/// content of that file (a stamp in the venv). Returns a reason on failure.
-fn install_no_deps(py: &quarry_testkit::python::PythonEnv, reqs: &Path) -> Result<(), String> {
-    let wanted = std::fs::read_to_string(reqs).map_err(|e| format!("{}: {e}", reqs.display()))?;
-    let stamp = py.root().join("quarry-requirements-nodeps.txt");
-    if std::fs::read_to_string(&stamp).ok().as_deref() == Some(&wanted) {
-        return Ok(());
-    }
-    let out = py
-        .command()
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "-q",
-            "--disable-pip-version-check",
-            "--no-deps",
-            "-r",
-        ])
-        .arg(reqs)
-        .output()
-        .map_err(|e| e.to_string())?;
-    if !out.status.success() {
-        return Err(String::from_utf8_lossy(&out.stderr).trim().to_string());
-    }
-    std::fs::write(&stamp, &wanted).map_err(|e| e.to_string())
-}
-
 #[test]
 fn pytest_suite() {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -55,7 +27,7 @@ fn pytest_suite() {
     let Some(py) = quarry_testkit::python::venv_or_skip(tmp, "py", &reqs) else {
         return;
     };
-    if let Err(e) = install_no_deps(&py, &here.join("tests/python/requirements-nodeps.txt")) {
+    if let Err(e) = py.install_no_deps(&here.join("tests/python/requirements-nodeps.txt")) {
         assert!(
             std::env::var_os("QUARRY_REQUIRE_PYTHON").is_none(),
             "pip install --no-deps -r requirements-nodeps.txt failed: {e}"
