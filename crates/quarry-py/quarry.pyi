@@ -353,12 +353,13 @@ class VarianceChi2Test:
 # ---------------------------------------------------------------------------------- trackers
 
 def track_video(
-    frames: U8,
+    frames: U8 | str | PathLike[str],
     preset: Literal["paper", "robust"] = "robust",
     person_size: tuple[float, float] | None = None,
     config_toml: str | None = None,
 ) -> F64:
-    """The video tracker of spec 004 (watershed + SIFT pools) on frames (T, H, W) uint8.
+    """The video tracker of spec 004 (watershed + SIFT pools) on frames (T, H, W) uint8 or a
+    directory of PNG / JPEG frames (sorted by name, colour read as BT.601 grey).
 
     Returns rows frame, id, left, top, width, height (MOTChallenge convention, 1-based)."""
 

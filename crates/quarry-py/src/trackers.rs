@@ -25,14 +25,50 @@ fn config<C: TrackerConfig>(preset: &str, config_toml: Option<&str>) -> PyResult
     }
 }
 
+/// Runs the video tracker over frames `next(k)` (`None` = end), as MOTChallenge rows.
+fn run_video(
+    cfg: WatershedSiftConfig,
+    mut next: impl FnMut(usize) -> Option<Result<Plane<u8>, String>>,
+) -> Result<Vec<f64>, String> {
+    let mut tracker = WatershedSiftTracker::new(cfg).map_err(|e| e.to_string())?;
+    let mut rows = Vec::new();
+    let mut size = None;
+    let mut k = 0;
+    while let Some(frame) = next(k) {
+        let frame = frame?;
+        if *size.get_or_insert(frame.dimensions()) != frame.dimensions() {
+            return Err(format!(
+                "frame {} is {}x{}, the first frame {:?}: every frame must have the same size",
+                k + 1,
+                frame.width,
+                frame.height,
+                size
+            ));
+        }
+        let reports = tracker
+            .step(Stamp::from_frame(k as u64, 1.0), &frame)
+            .map_err(|e| format!("frame {}: {e}", k + 1))?;
+        for r in reports {
+            let Some(bb) = r.bbox else { continue };
+            let [l, tp, bw, bh] = bb.to_ltwh();
+            #[allow(clippy::cast_precision_loss)]
+            rows.extend_from_slice(&[(k + 1) as f64, f64::from(r.id.0), l + 1.0, tp + 1.0, bw, bh]);
+        }
+        k += 1;
+    }
+    Ok(rows)
+}
+
 /// Runs the automatic multi-object video tracker (spec 004: watershed segmentation, region
 /// mapping, moving points, weighted SIFT pools) on a grey sequence.
 ///
-/// `frames` `(T, H, W)` uint8. `preset` `"paper"` or `"robust"`; `person_size` `(w, h)` pixels of
-/// a typical person (sets the box, the blur and the near distance, as the CLI's
-/// `--person-size`); `config_toml` TOML overlaid on the preset. Returns the tracks as float64
-/// rows `frame, id, left, top, width, height` in the MOTChallenge convention (frames and pixels
-/// 1-based, as `quarry video` writes them), ready for `mot_metrics`.
+/// `frames`: a `(T, H, W)` uint8 array, or a directory of PNG / JPEG frames (a MOTChallenge
+/// `img1/`: files sorted by name, colour converted to grey with BT.601 as `quarry video` does).
+/// `preset` `"paper"` or `"robust"`; `person_size` `(w, h)` pixels of a typical person (sets the
+/// box, the blur and the near distance, as the CLI's `--person-size`); `config_toml` TOML
+/// overlaid on the preset. Returns the tracks as float64 rows `frame, id, left, top, width,
+/// height` in the MOTChallenge convention (frames and pixels 1-based, as `quarry video` writes
+/// them), ready for `mot_metrics`.
 #[pyfunction]
 #[pyo3(signature = (frames, preset = "robust", person_size = None, config_toml = None))]
 pub fn track_video<'py>(
@@ -42,18 +78,6 @@ pub fn track_video<'py>(
     person_size: Option<(f64, f64)>,
     config_toml: Option<&str>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let a = args::array::<u8>(
-        frames,
-        "frames",
-        "(T, H, W)",
-        &[None, None, None],
-        false,
-        Values::Finite,
-    )?;
-    let (h, w) = (a.shape()[1], a.shape()[2]);
-    let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
-        return Err(value_error("frames", "frames are too large"));
-    };
     let mut cfg: WatershedSiftConfig = config::<WatershedSiftConfig>(preset, config_toml)?;
     if let Some((pw, ph)) = person_size {
         if !(pw.is_finite() && ph.is_finite() && pw > 0.0 && ph > 0.0) {
@@ -65,37 +89,47 @@ pub fn track_video<'py>(
         cfg = cfg.with_person_size(pw, ph);
         cfg.validate().map_err(|e| value_error("person_size", e))?;
     }
-    let pix = data(&a);
-    let rows = py
-        .detach(|| -> Result<Vec<f64>, String> {
-            let mut tracker = WatershedSiftTracker::new(cfg).map_err(|e| e.to_string())?;
-            let mut rows = Vec::new();
-            for (k, f) in pix.chunks_exact(w * h).enumerate() {
-                let frame = Plane {
-                    width: w32,
-                    height: h32,
-                    data: f.to_vec(),
-                };
-                let reports = tracker
-                    .step(Stamp::from_frame(k as u64, 1.0), &frame)
-                    .map_err(|e| format!("frame {}: {e}", k + 1))?;
-                for r in reports {
-                    let Some(bb) = r.bbox else { continue };
-                    let [l, tp, bw, bh] = bb.to_ltwh();
-                    #[allow(clippy::cast_precision_loss)]
-                    rows.extend_from_slice(&[
-                        (k + 1) as f64,
-                        f64::from(r.id.0),
-                        l + 1.0,
-                        tp + 1.0,
-                        bw,
-                        bh,
-                    ]);
-                }
-            }
-            Ok(rows)
-        })
-        .map_err(map_err("track_video"))?;
+    let is_array = frames.cast::<numpy::PyUntypedArray>().is_ok();
+    let rows = match frames.extract::<std::path::PathBuf>() {
+        Ok(dir) if !is_array => {
+            let files = quarry_data::image_sequence::list_frames(&dir)
+                .map_err(|e| value_error("frames", e))?;
+            py.detach(|| {
+                run_video(cfg, |k| {
+                    files.get(k).map(|f| {
+                        quarry_vision::io::load_gray(f).map_err(|e| format!("{}: {e}", f.display()))
+                    })
+                })
+            })
+        }
+        _ => {
+            let a = args::array::<u8>(
+                frames,
+                "frames",
+                "(T, H, W)",
+                &[None, None, None],
+                false,
+                Values::Finite,
+            )?;
+            let (h, w) = (a.shape()[1], a.shape()[2]);
+            let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
+                return Err(value_error("frames", "frames are too large"));
+            };
+            let pix = data(&a);
+            py.detach(|| {
+                run_video(cfg, |k| {
+                    pix.chunks_exact(w * h).nth(k).map(|f| {
+                        Ok(Plane {
+                            width: w32,
+                            height: h32,
+                            data: f.to_vec(),
+                        })
+                    })
+                })
+            })
+        }
+    }
+    .map_err(map_err("track_video"))?;
     let n = rows.len() / 6;
     rows_to_py(py, rows, n, 6)
 }

@@ -190,3 +190,21 @@ def test_lidar_stamps_beyond_range_are_errors():
         quarry.track_lidar(np.ones((3, 9)), np.array([0.0, 1e300, -1e300]), 0.0, 0.1)
     with pytest.raises(ValueError, match="t"):
         quarry.ChiSquareBackground(9, 0.0, 0.1).classify(np.ones(9), 1e13)
+
+
+def test_video_tracker_reads_a_frame_directory(tmp_path):
+    """A MOTChallenge-style img1/ directory gives the same tracks as the same frames in an array."""
+    import cv2
+    frames, _ = blob_video(frames=20)
+    for k, f in enumerate(frames):
+        cv2.imwrite(str(tmp_path / f"{k + 1:06d}.png"), f)
+    from_dir = quarry.track_video(tmp_path, person_size=(12.0, 30.0))
+    np.testing.assert_array_equal(from_dir, quarry.track_video(frames, person_size=(12.0, 30.0)))
+    assert len(from_dir) > 0
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError, match="frames"):
+        quarry.track_video(str(empty))
+    cv2.imwrite(str(tmp_path / "000021.png"), frames[0][:50])
+    with pytest.raises(ValueError, match="same size"):
+        quarry.track_video(tmp_path)
