@@ -228,6 +228,12 @@ pub fn polar_scan(ranges: &[f64], t: f64, seq: u32, geometry: ScanGeometry) -> P
     PolarScan::try_new(SensorId(0), seq, stamp, mm, geometry).map_err(|e| value_error("ranges", e))
 }
 
+/// Most beams per scan accepted by [`ChiSquareBackground`] (real 2-D scanners have a few
+/// thousand).
+pub const MAX_BEAMS: u32 = 100_000;
+/// Longest window (scans) accepted by [`ChiSquareBackground`] (the lidar tracker's own limit).
+pub const MAX_WINDOW: usize = 4000;
+
 /// Label codes returned by the background models.
 fn label_code(l: BeamLabel) -> i8 {
     match l {
@@ -274,6 +280,20 @@ impl ChiSquareBackground {
         region_radius: f64,
         long_term: bool,
     ) -> PyResult<Self> {
+        // the model allocates n_beams × window cells up front: bound both (a 2³¹-beam scanner
+        // would exhaust memory and abort the interpreter instead of raising)
+        if !(1..=MAX_BEAMS).contains(&n_beams) {
+            return Err(value_error(
+                "n_beams",
+                format!("{n_beams} is not in 1..={MAX_BEAMS}"),
+            ));
+        }
+        if !(1..=MAX_WINDOW).contains(&window) {
+            return Err(value_error(
+                "window",
+                format!("{window} is not in 1..={MAX_WINDOW}"),
+            ));
+        }
         let geometry = ScanGeometry {
             n_beams,
             angle_min,

@@ -51,6 +51,30 @@ fn frames<const K: usize>(gt: &ByFrame<K>, hyp: &ByFrame<K>) -> Vec<Frame<[f64; 
         .collect()
 }
 
+/// Most `distinct ground-truth ids × distinct hypothesis ids` accepted: IDF1 and HOTA keep dense
+/// matrices of that many cells (as py-motmetrics and TrackEval do), so a sequence beyond it would
+/// exhaust memory and abort the interpreter instead of raising.
+pub const MAX_ID_PAIRS: usize = 1 << 27;
+
+/// Checks the id product of a sequence against [`MAX_ID_PAIRS`].
+fn check_id_pairs<T>(frames: &[Frame<T>]) -> Result<(), String> {
+    let count = |side: &dyn Fn(&Frame<T>) -> Vec<i64>| {
+        let mut ids: Vec<i64> = frames.iter().flat_map(side).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.len()
+    };
+    let g = count(&|f| f.gt.iter().map(|p| p.0).collect());
+    let h = count(&|f| f.hyp.iter().map(|p| p.0).collect());
+    if g.saturating_mul(h) > MAX_ID_PAIRS {
+        return Err(format!(
+            "{g} ground-truth ids × {h} hypothesis ids exceed the {MAX_ID_PAIRS} cells of the \
+             dense IDF1 / HOTA matrices"
+        ));
+    }
+    Ok(())
+}
+
 /// Compares the sequence and scores all three families with the GIL released.
 fn score<const K: usize, S: Similarity<[f64; K]> + Sync>(
     py: Python<'_>,
@@ -62,7 +86,10 @@ fn score<const K: usize, S: Similarity<[f64; K]> + Sync>(
     let h = group::<K>("hyp", hyp)?;
     py.detach(|| {
         let f = frames(&g, &h);
-        MotEvaluation::new(&f, sim)?.summary()
+        check_id_pairs(&f)?;
+        MotEvaluation::new(&f, sim)
+            .and_then(|e| e.summary())
+            .map_err(|e| e.to_string())
     })
     .map_err(map_err("mot_metrics"))
 }
@@ -229,6 +256,9 @@ pub fn mot_metrics_files<'py>(
             let gt = motchallenge::read_gt_file(&gt_path, style)?;
             let res = motchallenge::read_results_file(&res_path)?;
             let f = motchallenge::to_frames(&gt, &res, threshold)?;
+            check_id_pairs(&f).map_err(|e| {
+                quarry_eval::EvalError::from(quarry_core::CoreError::invalid("ids", e))
+            })?;
             MotEvaluation::new(&f, &sim)?.summary()
         })
         .map_err(map_err("mot_metrics_files"))?;

@@ -148,7 +148,12 @@ def test_cloud_errors_name_the_argument():
         quarry.ChiSquareBackground(10, 0.0, 0.1).classify(np.zeros(9), 0.0)
     with pytest.raises(ValueError, match="t"):
         quarry.ChiSquareBackground(10, 0.0, 0.1).classify(np.zeros(10), math.nan)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="n_beams"):
         quarry.ChiSquareBackground(0, 0.0, 0.1)
+    # sizes that would exhaust memory (and abort the interpreter) are refused up front
+    with pytest.raises(ValueError, match="n_beams"):
+        quarry.ChiSquareBackground(2**31 - 1, 0.0, 1e-9)
+    with pytest.raises(ValueError, match="window"):
+        quarry.ChiSquareBackground(10, 0.0, 0.1, window=2**40)
     with pytest.raises(ValueError, match="window"):
         quarry.VarianceChi2Test(np.zeros((1, 5)))

@@ -270,3 +270,12 @@ def test_metric_errors_name_the_argument(tmp_path):
     # empty sequences are fine: MOTA undefined (NaN), as in py-motmetrics
     e = quarry.mot_metrics(np.zeros((0, 6)), np.zeros((0, 6)))
     assert np.isnan(e["mota"])
+
+
+def test_too_many_distinct_ids_is_an_error_not_an_abort():
+    """IDF1 / HOTA hold dense (gt ids × hypothesis ids) matrices: 20 000 × 20 000 distinct ids
+    (3.2 GB per matrix) is refused before allocating."""
+    n = 20000
+    gt = np.column_stack([np.arange(1, n + 1), np.arange(n), np.zeros((n, 2)), np.ones((n, 2))])
+    with pytest.raises(ValueError, match="ids"):
+        quarry.mot_metrics(gt, gt)
