@@ -142,33 +142,46 @@ pub fn py_regional_minima<'py>(
     Ok((labels_to_py(py, &m.labels)?, n))
 }
 
-/// Seeds from a marker image: labels 1..=K, with a record per label.
-fn seeds_from_markers<T: Relief>(relief: &Plane<T>, markers: &[i32]) -> PyResult<Minima> {
-    let w = relief.width as usize;
-    let mut k = 0u32;
-    for (i, &l) in markers.iter().enumerate() {
-        if l < 0 {
-            return Err(value_error(
-                "markers",
-                format!("label {l} at flat index {i} is negative"),
-            ));
-        }
-        k = k.max(l.unsigned_abs());
+/// Seeds from a marker image: its distinct positive labels, compacted to 1..=K in increasing
+/// order (so any int32 labels work without a label-sized allocation), with a record per seed;
+/// returns the seeds and the original label of each compact one.
+fn seeds_from_markers<T: Relief>(
+    relief: &Plane<T>,
+    markers: &[i32],
+) -> PyResult<(Minima, Vec<i32>)> {
+    if let Some((i, l)) = markers.iter().enumerate().find(|(_, l)| **l < 0) {
+        return Err(value_error(
+            "markers",
+            format!("label {l} at flat index {i} is negative"),
+        ));
     }
-    if k == 0 {
+    let mut labels: Vec<i32> = markers.iter().copied().filter(|&l| l > 0).collect();
+    labels.sort_unstable();
+    labels.dedup();
+    if labels.is_empty() {
         return Err(value_error("markers", "has no seed (every label is 0)"));
     }
-    let mut minima: Vec<MinimumInfo> = (1..=k)
+    let compact = |l: i32| -> u32 {
+        // labels holds l (it came from markers); the index fits u32 (< number of pixels)
+        labels
+            .binary_search(&l)
+            .map_or(0, |k| u32::try_from(k + 1).unwrap_or(0))
+    };
+    let mut minima: Vec<MinimumInfo> = (1..=labels.len())
         .map(|id| MinimumInfo {
-            id,
+            id: u32::try_from(id).unwrap_or(u32::MAX),
             representative: (0, 0),
             size: 0,
             value: f64::NAN,
         })
         .collect();
+    let w = relief.width as usize;
+    let mut data = Vec::with_capacity(markers.len());
     for (i, &l) in markers.iter().enumerate() {
-        if l > 0 {
-            let m = &mut minima[l as usize - 1];
+        let c = if l > 0 { compact(l) } else { 0 };
+        data.push(c);
+        if c > 0 {
+            let m = &mut minima[c as usize - 1];
             if m.size == 0 {
                 #[allow(clippy::cast_possible_truncation)]
                 {
@@ -179,14 +192,15 @@ fn seeds_from_markers<T: Relief>(relief: &Plane<T>, markers: &[i32]) -> PyResult
             m.size += 1;
         }
     }
-    Ok(Minima {
+    let seeds = Minima {
         labels: Plane {
             width: relief.width,
             height: relief.height,
-            data: markers.iter().map(|&l| l.unsigned_abs()).collect(),
+            data,
         },
         minima,
-    })
+    };
+    Ok((seeds, labels))
 }
 
 /// Meyer (priority-flood) watershed without lines: every pixel gets a label.
@@ -207,20 +221,30 @@ pub fn watershed<'py>(
         connectivity: self::connectivity(connectivity)?,
     };
     let markers = markers.filter(|m| !m.is_none());
+    let mut relabel: Option<Vec<i32>> = None;
     let seg = by_relief!(relief, "relief", |p| {
         match markers {
             Some(mk) => {
                 let shape = format!("({}, {})", p.height, p.width);
                 let dims = [Some(p.height as usize), Some(p.width as usize)];
                 let a = args::array::<i32>(mk, "markers", &shape, &dims, false, Values::Finite)?;
-                let seeds = seeds_from_markers(&p, data(&a))?;
+                let (seeds, original) = seeds_from_markers(&p, data(&a))?;
+                relabel = Some(original);
                 py.detach(|| flood(&p, &seeds, opts))
             }
             None => py.detach(|| quarry_vision::watershed(&p, opts)),
         }
         .map_err(map_err("watershed"))?
     });
-    labels_to_py(py, &seg.labels)
+    match relabel {
+        // back to the caller's marker labels
+        Some(orig) => plane_to_py(
+            py,
+            seg.labels
+                .map(|&c| orig.get((c as usize).wrapping_sub(1)).copied().unwrap_or(0)),
+        ),
+        None => labels_to_py(py, &seg.labels),
+    }
 }
 
 /// numpy's dtype for keypoints, with `cv2.KeyPoint`'s fields.

@@ -181,3 +181,17 @@ def test_vision_errors_name_the_argument(gray):
         quarry.match_sift(np.zeros((2, 128), np.uint8), np.zeros((2, 64), np.uint8))
     with pytest.raises(ValueError, match="ratio"):
         quarry.match_sift(np.zeros((2, 128), np.uint8), np.zeros((2, 128), np.uint8), ratio=1.5)
+
+
+def test_watershed_keeps_arbitrary_marker_labels(blurred):
+    """Marker labels need not be 1..K: any positive int32 labels come back as they were (and a
+    label of 2**31 - 1 allocates nothing label-sized)."""
+    markers, n = ndimage.label(local_minima(blurred, connectivity=1))
+    markers = markers.astype(np.int32)
+    ref = quarry.watershed(blurred, markers)
+    sparse = np.where(markers > 0, markers * 1000 + 7, 0).astype(np.int32)
+    sparse[sparse == sparse.max()] = 2**31 - 1
+    out = quarry.watershed(blurred, sparse)
+    lut = {int(m): int(s) for m, s in zip(markers[markers > 0], sparse[markers > 0])}
+    np.testing.assert_array_equal(out, np.vectorize(lut.get)(ref))
+    np.testing.assert_array_equal(out, sk_watershed(blurred, sparse))
