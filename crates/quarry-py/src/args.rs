@@ -198,6 +198,24 @@ pub fn finite(name: &str, v: f64) -> PyResult<f64> {
     }
 }
 
+/// Most cells of a matrix a binding builds from smaller arguments (2²⁸ f64 = 2 GiB): beyond it
+/// the allocation would fail and abort the interpreter instead of raising.
+pub const MAX_CELLS: usize = 1 << 28;
+
+/// Checks that a derived `rows × cols` matrix stays within [`MAX_CELLS`].
+///
+/// # Errors
+/// `ValueError` naming `name` (the argument whose size decides).
+pub fn check_cells(name: &str, what: &str, rows: usize, cols: usize) -> PyResult<()> {
+    if rows.saturating_mul(cols) > MAX_CELLS {
+        return Err(value_error(
+            name,
+            format!("{what} of {rows} x {cols} cells exceeds the {MAX_CELLS}-cell limit"),
+        ));
+    }
+    Ok(())
+}
+
 /// A finite pose `(x, y, theta)` argument.
 ///
 /// # Errors

@@ -109,6 +109,7 @@ pub fn chi2_gate<'py>(
         Values::Finite,
     )?;
     let m = za.shape()[0];
+    args::check_cells("z", "the (n, m) output", n, m)?;
     let gamma = chi2_threshold(prob_gate, d)?;
     let (zh_s, s_s, z_s) = (data(&zh), data(&sa), data(&za));
     let out = py.detach(|| match d {
@@ -341,6 +342,13 @@ pub fn gnn<'py>(
     cost: &str,
 ) -> PyResult<AssignOut<'py>> {
     let lik = loglik_arg(loglik)?;
+    let (n, m) = (lik.n_tracks(), lik.n_meas());
+    args::check_cells(
+        "loglik",
+        "the assignment problem with a miss column per track",
+        n,
+        m + n,
+    )?;
     let mut g = Gnn::new(pd, prob_gate, clutter_density).map_err(map_err("gnn"))?;
     g.cost = match cost {
         "joint" => GnnCost::JointEvent,
@@ -387,6 +395,14 @@ fn cost_args(
             .map(|v| data(&v).to_vec())
         })
         .transpose()?;
+    if miss.is_some() {
+        args::check_cells(
+            "cost",
+            "the assignment problem with a miss column per row",
+            n,
+            m + n,
+        )?;
+    }
     Ok((to_dmatrix(data(&a), n, m), miss))
 }
 

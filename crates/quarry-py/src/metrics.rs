@@ -283,6 +283,12 @@ fn point_sets(x: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>,
             format!("point dimension {d} is not supported (1 to 4)"),
         ));
     }
+    args::check_cells(
+        "y",
+        "the (m, n) distance matrix",
+        xa.shape()[0],
+        ya.shape()[0],
+    )?;
     Ok((data(&xa).to_vec(), data(&ya).to_vec(), d))
 }
 

@@ -146,3 +146,17 @@ def test_kalman_filter_methods_survive_bad_input():
                 f(z)
             except (ValueError, TypeError):
                 pass
+
+
+def test_derived_matrices_beyond_memory_are_errors():
+    """Small arguments whose derived matrix would not fit (an abort, not an exception) are
+    refused: the gate output, GNN's and assign's miss-augmented problem, OSPA's distances."""
+    big = np.zeros((100_000, 2))
+    with pytest.raises(ValueError, match="z"):
+        quarry.chi2_gate(big, np.broadcast_to(np.eye(2), (100_000, 2, 2)).copy(), big)
+    with pytest.raises(ValueError, match="loglik"):
+        quarry.gnn(np.zeros((100_000, 1)), 0.9, 0.99, 1e-3)
+    with pytest.raises(ValueError, match="cost"):
+        quarry.assign(np.zeros((100_000, 1)), np.zeros(100_000))
+    with pytest.raises(ValueError, match="y"):
+        quarry.ospa(big, big, 1.0)
