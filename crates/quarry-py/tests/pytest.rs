@@ -1,7 +1,8 @@
 //! Builds nothing itself: finds the cdylib cargo built for this test profile, installs it as the
 //! `quarry` extension module in a temp package dir and runs the pytest suite in
-//! `tests/python` inside a pinned venv (skipped with a printed reason when the venv cannot be
-//! made, unless `QUARRY_REQUIRE_PYTHON=1`).
+//! `tests/python` inside a pinned venv (`requirements.txt`, then `requirements-nodeps.txt`
+//! without dependencies; skipped with a printed reason when the venv cannot be made, unless
+//! `QUARRY_REQUIRE_PYTHON=1`).
 
 use std::path::{Path, PathBuf};
 
@@ -26,6 +27,14 @@ fn pytest_suite() {
     let Some(py) = quarry_testkit::python::venv_or_skip(tmp, "py", &reqs) else {
         return;
     };
+    if let Err(e) = py.install_no_deps(&here.join("tests/python/requirements-nodeps.txt")) {
+        assert!(
+            std::env::var_os("QUARRY_REQUIRE_PYTHON").is_none(),
+            "pip install --no-deps -r requirements-nodeps.txt failed: {e}"
+        );
+        eprintln!("skipped: pip install --no-deps -r requirements-nodeps.txt failed ({e})");
+        return;
+    }
     let Some(so) = cdylib() else {
         panic!(
             "libquarry_py.so not found next to the test binary; build with cargo test -p quarry-py"

@@ -45,6 +45,24 @@ impl PythonEnv {
         &self.python
     }
 
+    /// Installs a second requirements file with `pip install --no-deps` (for packages whose
+    /// declared dependencies would pull in what the caller does not need), once per content of
+    /// the file: a stamp in the venv remembers it, and a new venv (changed main requirements)
+    /// starts without the stamp.
+    ///
+    /// # Errors
+    /// An unreadable file, or pip failing (message included).
+    pub fn install_no_deps(&self, requirements: &Path) -> Result<(), String> {
+        let wanted = fs::read_to_string(requirements)
+            .map_err(|e| format!("cannot read {}: {e}", requirements.display()))?;
+        let stamp = self.root.join("quarry-requirements-nodeps.txt");
+        if fs::read_to_string(&stamp).ok().as_deref() == Some(&wanted) {
+            return Ok(());
+        }
+        pip_install(&self.python, &["--no-deps"], requirements)?;
+        fs::write(&stamp, &wanted).map_err(|e| format!("cannot write {}: {e}", stamp.display()))
+    }
+
     /// A `Command` running the venv's interpreter (add the script and its arguments).
     pub fn command(&self) -> Command {
         let mut c = Command::new(&self.python);
@@ -92,17 +110,7 @@ pub fn venv(dir: &Path, name: &str, requirements: &Path) -> Result<PythonEnv, St
     let _ = fs::remove_dir_all(&root);
     run(Command::new(&interpreter).arg("-m").arg("venv").arg(&root))
         .map_err(|e| format!("`{interpreter} -m venv` failed: {e}"))?;
-    run(Command::new(&python)
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "-q",
-            "--disable-pip-version-check",
-            "-r",
-        ])
-        .arg(requirements))
-    .map_err(|e| format!("pip install -r {} failed: {e}", requirements.display()))?;
+    pip_install(&python, &[], requirements)?;
     fs::write(&stamp, &wanted).map_err(|e| format!("cannot write {}: {e}", stamp.display()))?;
     Ok(env)
 }
@@ -120,6 +128,21 @@ pub fn venv_or_skip(dir: &Path, name: &str, requirements: &Path) -> Option<Pytho
             None
         }
     }
+}
+
+/// `python -m pip install -q [extra] -r requirements`.
+fn pip_install(python: &Path, extra: &[&str], requirements: &Path) -> Result<(), String> {
+    run(Command::new(python)
+        .args(["-m", "pip", "install", "-q", "--disable-pip-version-check"])
+        .args(extra)
+        .arg("-r")
+        .arg(requirements))
+    .map_err(|e| {
+        format!(
+            "pip install {extra:?} -r {} failed: {e}",
+            requirements.display()
+        )
+    })
 }
 
 fn run(cmd: &mut Command) -> Result<(), String> {
