@@ -41,6 +41,7 @@
 //! ```
 
 pub mod adjacency;
+pub mod background;
 pub mod blur;
 pub mod colour;
 pub mod convert;
@@ -66,6 +67,7 @@ mod simd;
 pub mod watershed;
 
 pub use adjacency::{RegionAdjacency, RegionStats, region_stats};
+pub use background::{MedianBackground, MedianBackgroundParams};
 pub use blur::{Border, GaussianKernel, gaussian_blur_f32, gaussian_blur_f64};
 pub use colour::HueBinner;
 pub use depth_weights::{DepthBand, PixelWeight};

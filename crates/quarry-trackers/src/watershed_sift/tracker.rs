@@ -8,7 +8,8 @@ use quarry_core::{
     TrackReport, TrackStatus,
 };
 use quarry_vision::{
-    LinkKind, RegionAdjacency, RegionMapping, Sift, SiftDescriptor, SiftParams, WeightedPool,
+    LinkKind, MedianBackground, RegionAdjacency, RegionMapping, Sift, SiftDescriptor, SiftParams,
+    WeightedPool,
 };
 use serde::Serialize;
 
@@ -83,6 +84,12 @@ pub struct Target {
     placed: bool,
     /// Consecutive frames of box overlap with younger targets (fusion, an extension).
     fuse_streak: BTreeMap<TrackId, usize>,
+    /// The last foreground fit (`fg_box`): box centre minus O_c, and size.
+    fit: Option<[f64; 4]>,
+    /// Consecutive visible frames without foreground support (`fg_gate`).
+    no_fg: usize,
+    /// The box reported this frame (None: not reported).
+    report: Option<BBox>,
 }
 
 /// Per-target diagnostics of one frame.
@@ -111,6 +118,8 @@ pub struct StageTimes {
     pub sift_us: f64,
     /// Everything else: ownership tests, pools, resolution.
     pub track_us: f64,
+    /// Background model update and the foreground box fits (`fg_box`, `fg_gate`).
+    pub foreground_us: f64,
 }
 
 /// What happened in one frame (spec §8 `FrameDiagnostics`, for the figures of §5.3).
@@ -224,6 +233,8 @@ pub struct WatershedSiftTracker {
     next_id: u32,
     frames: u64,
     diagnostics: FrameDiagnostics,
+    /// The running background (`fg_box` or `fg_gate`).
+    background: Option<MedianBackground>,
 }
 
 /// `p` rounded half away from zero and clamped into a `w × h` image.
@@ -246,7 +257,6 @@ impl WatershedSiftTracker {
             ..SiftParams::default()
         })?;
         Ok(Self {
-            cfg,
             front,
             sift,
             targets: Vec::new(),
@@ -254,6 +264,12 @@ impl WatershedSiftTracker {
             next_id: 1,
             frames: 0,
             diagnostics: FrameDiagnostics::default(),
+            background: if cfg.fg_box || cfg.fg_gate {
+                Some(MedianBackground::new(cfg.background_params())?)
+            } else {
+                None
+            },
+            cfg,
         })
     }
 
@@ -360,6 +376,11 @@ impl WatershedSiftTracker {
         let t0 = Instant::now();
         self.front.step(frame)?;
         let t_seg = t0.elapsed().as_secs_f64() * 1e6;
+        let tb = Instant::now();
+        if let Some(bg) = &mut self.background {
+            bg.update(frame)?;
+        }
+        let t_bg = tb.elapsed().as_secs_f64() * 1e6;
         let t = stamp.frame.0;
         self.frames += 1;
         let (Some(seg), Some(prev), Some(map)) = (
@@ -376,6 +397,7 @@ impl WatershedSiftTracker {
                 regions: seg.n_regions(),
                 times: StageTimes {
                     segment_us: t_seg,
+                    foreground_us: t_bg,
                     ..StageTimes::default()
                 },
                 ..FrameDiagnostics::default()
@@ -794,6 +816,9 @@ impl WatershedSiftTracker {
                 fresh: true,
                 placed: false,
                 fuse_streak: BTreeMap::new(),
+                fit: None,
+                no_fg: 0,
+                report: None,
             });
             occluded.push(false);
             located.push(None);
@@ -916,6 +941,11 @@ impl WatershedSiftTracker {
             self.fuse();
         }
 
+        // ----- reported boxes: fixed (paper) or fitted to the foreground \[ext\] -----
+        let tf = Instant::now();
+        self.report_boxes(&seg, frame);
+        let t_fit = tf.elapsed().as_secs_f64() * 1e6;
+
         // ----- termination (§2.16) -----
         let (bw, bh) = (self.cfg.box_w / 2.0, self.cfg.box_h / 2.0);
         let (fw, fh) = (f64::from(w) - 1.0, f64::from(h) - 1.0);
@@ -938,7 +968,7 @@ impl WatershedSiftTracker {
             let in_band = c[0] < bw || c[0] > fw - bw || c[1] < bh || c[1] > fh - bh;
             let exit = in_band && d_k(cfg.exit_frames).is_some_and(|d| d < cfg.still_px);
             let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px);
-            let lost = tg.lost > cfg.lost_frames;
+            let lost = tg.lost > cfg.lost_frames || tg.no_fg > cfg.lost_frames;
             !(exit || stuck || lost)
         });
         let terminated = before - self.targets.len();
@@ -950,11 +980,12 @@ impl WatershedSiftTracker {
                 (m.len() >= 2).then_some((l, m))
             })
             .collect();
-        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us;
+        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us - t_fit;
 
         // ----- reports -----
         let mut reports = Vec::new();
         for tg in &self.targets {
+            let Some(bbox) = tg.report else { continue };
             if tg.regions.is_empty() || t < tg.born + self.cfg.report_after as u64 {
                 continue;
             }
@@ -967,7 +998,7 @@ impl WatershedSiftTracker {
                     TrackStatus::Confirmed
                 },
             );
-            r.bbox = Some(self.bbox(tg.centre));
+            r.bbox = Some(bbox);
             r.score = Some(1.0);
             if tg.born == t {
                 r.flags = TrackFlags::BORN;
@@ -1004,6 +1035,7 @@ impl WatershedSiftTracker {
                 map_us: t_map,
                 sift_us,
                 track_us: t_track.max(0.0),
+                foreground_us: t_bg + t_fit,
             },
         };
         Ok(reports)
@@ -1011,6 +1043,140 @@ impl WatershedSiftTracker {
 }
 
 impl WatershedSiftTracker {
+    /// Sets every target's reported box for this frame: the fixed box around O_c (paper), or
+    /// with `fg_box` the box fitted to its foreground pixels (see the config docs); a target
+    /// without a fit this frame keeps its last fit's offset and size. With `fg_gate` a visible
+    /// target without foreground support is not reported and counts towards termination.
+    fn report_boxes(&mut self, seg: &Segmentation, frame: &Plane<u8>) {
+        let mature = self
+            .background
+            .as_ref()
+            .filter(|b| b.samples_held() >= 3.min(b.params().samples));
+        let fixed = |c: [f64; 2]| BBox {
+            cx: c[0],
+            cy: c[1],
+            w: self.cfg.box_w,
+            h: self.cfg.box_h,
+        };
+        let Some(bg) = mature else {
+            for tg in &mut self.targets {
+                tg.report = (!tg.regions.is_empty()).then(|| fixed(tg.centre));
+            }
+            return;
+        };
+        // owners of each label: visible targets, and the members of an occlusion group
+        let mut owners: Vec<Vec<usize>> = vec![Vec::new(); seg.n_regions() + 1];
+        for (k, tg) in self.targets.iter().enumerate() {
+            for r in &tg.regions {
+                if let Some(o) = owners.get_mut(r.label as usize) {
+                    o.push(k);
+                }
+            }
+        }
+        let cfg = &self.cfg;
+        let (w, h) = (seg.labels.width as usize, seg.labels.height as usize);
+        let back = &bg.background().data;
+        let thr = cfg.fg_threshold;
+        let mut fits: Vec<Option<[f64; 4]>> = vec![None; self.targets.len()];
+        for (k, tg) in self.targets.iter().enumerate() {
+            if tg.regions.is_empty() || tg.occluded {
+                continue;
+            }
+            let (hw, hh) = (cfg.fg_window * cfg.box_w, cfg.fg_window * cfg.box_h);
+            let clampi = |v: f64, n: usize| v.clamp(0.0, n as f64 - 1.0) as usize;
+            let (x0, x1) = (
+                clampi((tg.centre[0] - hw).ceil(), w),
+                clampi((tg.centre[0] + hw).floor(), w),
+            );
+            let (y0, y1) = (
+                clampi((tg.centre[1] - hh).ceil(), h),
+                clampi((tg.centre[1] + hh).floor(), h),
+            );
+            let mut cols = vec![0usize; x1 - x0 + 1];
+            let mut rows = vec![0usize; y1 - y0 + 1];
+            let mut n = 0usize;
+            for y in y0..=y1 {
+                let row = y * w;
+                for x in x0..=x1 {
+                    let i = row + x;
+                    if frame.data[i].abs_diff(back[i]) <= thr {
+                        continue;
+                    }
+                    let o = &owners[seg.labels.data[i] as usize];
+                    if o.is_empty() || o.contains(&k) {
+                        cols[x - x0] += 1;
+                        rows[y - y0] += 1;
+                        n += 1;
+                    }
+                }
+            }
+            if (n as f64) < cfg.fg_min_frac * cfg.box_w * cfg.box_h || n == 0 {
+                continue;
+            }
+            let span = |hist: &[usize], lo0: usize| -> (f64, f64) {
+                let (lo_n, hi_n) = (cfg.fg_trim * n as f64, (1.0 - cfg.fg_trim) * n as f64);
+                let (mut acc, mut lo, mut hi) = (0usize, 0usize, hist.len() - 1);
+                let mut lo_set = false;
+                for (i, &c) in hist.iter().enumerate() {
+                    acc += c;
+                    if !lo_set && acc as f64 > lo_n {
+                        lo = i;
+                        lo_set = true;
+                    }
+                    if acc as f64 >= hi_n {
+                        hi = i;
+                        break;
+                    }
+                }
+                ((lo0 + lo) as f64, (lo0 + hi) as f64 + 1.0)
+            };
+            let fit_axis = |(a, b): (f64, f64), size: f64, c: f64| -> (f64, f64) {
+                let s = cfg.fg_max_scale;
+                let len = (b - a).clamp(size / s, size * s);
+                // centre as close to O_c as the blob allows
+                let lo = a + len / 2.0;
+                let hi = b - len / 2.0;
+                let cc = if lo <= hi {
+                    c.clamp(lo, hi)
+                } else {
+                    (a + b) / 2.0
+                };
+                (cc, len)
+            };
+            let (cx, fw) = fit_axis(span(&cols, x0), cfg.box_w, tg.centre[0]);
+            let (cy, fh) = fit_axis(span(&rows, y0), cfg.box_h, tg.centre[1]);
+            fits[k] = Some([cx - tg.centre[0], cy - tg.centre[1], fw, fh]);
+        }
+        let (fg_box, fg_gate) = (cfg.fg_box, cfg.fg_gate);
+        for (tg, fit) in self.targets.iter_mut().zip(fits) {
+            if tg.regions.is_empty() {
+                tg.report = None;
+                continue;
+            }
+            let visible = !tg.occluded;
+            if visible && fit.is_none() {
+                tg.no_fg += 1;
+            } else {
+                tg.no_fg = 0;
+            }
+            if fit.is_some() {
+                tg.fit = fit;
+            }
+            tg.report = if fg_gate && visible && fit.is_none() {
+                None
+            } else if let (true, Some(f)) = (fg_box, tg.fit) {
+                Some(BBox {
+                    cx: tg.centre[0] + f[0],
+                    cy: tg.centre[1] + f[1],
+                    w: f[2],
+                    h: f[3],
+                })
+            } else {
+                Some(fixed(tg.centre))
+            };
+        }
+    }
+
     /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
     /// consecutive frames: the younger (larger id) joins the older.
     fn fuse(&mut self) {
