@@ -210,6 +210,27 @@ pub struct WatershedSiftConfig {
     /// 1.6 — covers people from 0.6 to 1.6 times the typical size; a wider blob is a group,
     /// and its box is then centred as close to O_c as the blob allows].
     pub fg_max_scale: f64,
+    /// The fitted box's width stays at most this times `box_w / box_h` times its fitted
+    /// height [ours, `robust`: 1.3 — perspective scales a person's width and height together,
+    /// and a walking person with spread legs or arms reaches about 1.3 times the typical
+    /// aspect; a blob wider than that at a person's height is a group, and the box keeps to the
+    /// part nearest O_c].
+    pub fg_max_aspect: f64,
+    /// Foreground births \[ext, ours; `robust`: true\]: foreground that no target's box covers,
+    /// forming a blob of at least `birth_min_frac`·w·h pixels and half a person's height, seen
+    /// at overlapping places (IoU ≥ 0.3) in `birth_frames` consecutive frames, starts a target
+    /// on the unowned watershed regions whose minima lie in the blob. The paper creates targets
+    /// only from regularly moving minima (eqs. 6-7); on PETS09 that misses people brighter than
+    /// the ground (no minimum on them), people standing or walking slowly, and the second
+    /// person of a pair whose blurred images share one minimum (docs/video-tracker.md).
+    pub fg_births: bool,
+    /// Smallest uncovered foreground blob for a birth, as a fraction of w·h [ours, `robust`:
+    /// 0.3 — a silhouette fills about 60 % of its box; half of it must be uncovered].
+    pub birth_min_frac: f64,
+    /// Consecutive frames a birth candidate must persist [ours, `robust`: 3 — like the fusion
+    /// confirmation, short against the N = 10 frames of the moving-point test, long enough to
+    /// reject single-frame noise and flicker].
+    pub birth_frames: usize,
 }
 
 impl Default for WatershedSiftConfig {
@@ -267,6 +288,10 @@ impl WatershedSiftConfig {
             fg_min_frac: 0.1,
             fg_trim: 0.02,
             fg_max_scale: 1.6,
+            fg_max_aspect: 1.3,
+            fg_births: false,
+            birth_min_frac: 0.3,
+            birth_frames: 3,
         }
     }
 
@@ -284,6 +309,7 @@ impl WatershedSiftConfig {
             fuse_iou: 0.5,
             fg_box: true,
             fg_gate: true,
+            fg_births: true,
             ..Self::paper()
         }
     }
@@ -381,10 +407,26 @@ impl crate::TrackerConfig for WatershedSiftConfig {
                 self.fg_window
             ));
         }
-        for (name, v) in [("fg_min_frac", self.fg_min_frac), ("fg_trim", self.fg_trim)] {
+        for (name, v) in [
+            ("fg_min_frac", self.fg_min_frac),
+            ("fg_trim", self.fg_trim),
+            ("birth_min_frac", self.birth_min_frac),
+        ] {
             if !(v.is_finite() && (0.0..0.5).contains(&v)) {
                 return err(format!("{name} must be in [0, 0.5), got {v}"));
             }
+        }
+        if !(self.fg_max_aspect.is_finite() && (0.1..=100.0).contains(&self.fg_max_aspect)) {
+            return err(format!(
+                "fg_max_aspect must be in [0.1, 100], got {}",
+                self.fg_max_aspect
+            ));
+        }
+        if self.birth_frames == 0 || self.birth_frames > MAX_FRAMES_RULE {
+            return err(format!(
+                "birth_frames must be in 1..={MAX_FRAMES_RULE}, got {}",
+                self.birth_frames
+            ));
         }
         if !(self.fg_max_scale.is_finite() && (1.0..=100.0).contains(&self.fg_max_scale)) {
             return err(format!(

@@ -233,8 +233,11 @@ pub struct WatershedSiftTracker {
     next_id: u32,
     frames: u64,
     diagnostics: FrameDiagnostics,
-    /// The running background (`fg_box` or `fg_gate`).
+    /// The running background (`fg_box`, `fg_gate` or `fg_births`).
     background: Option<MedianBackground>,
+    /// Foreground birth candidates of the last frame: blob box `[x0, y0, x1, y1)` and the
+    /// number of consecutive frames it was seen.
+    birth_candidates: Vec<([f64; 4], usize)>,
 }
 
 /// `p` rounded half away from zero and clamped into a `w × h` image.
@@ -264,7 +267,8 @@ impl WatershedSiftTracker {
             next_id: 1,
             frames: 0,
             diagnostics: FrameDiagnostics::default(),
-            background: if cfg.fg_box || cfg.fg_gate {
+            birth_candidates: Vec::new(),
+            background: if cfg.fg_box || cfg.fg_gate || cfg.fg_births {
                 Some(MedianBackground::new(cfg.background_params())?)
             } else {
                 None
@@ -944,6 +948,9 @@ impl WatershedSiftTracker {
         // ----- reported boxes: fixed (paper) or fitted to the foreground \[ext\] -----
         let tf = Instant::now();
         self.report_boxes(&seg, frame);
+        if self.cfg.fg_births {
+            created += self.foreground_births(&seg, frame, t)?;
+        }
         let t_fit = tf.elapsed().as_secs_f64() * 1e6;
 
         // ----- termination (§2.16) -----
@@ -1130,9 +1137,9 @@ impl WatershedSiftTracker {
                 }
                 ((lo0 + lo) as f64, (lo0 + hi) as f64 + 1.0)
             };
-            let fit_axis = |(a, b): (f64, f64), size: f64, c: f64| -> (f64, f64) {
+            let fit_axis = |(a, b): (f64, f64), size: f64, c: f64, cap: f64| -> (f64, f64) {
                 let s = cfg.fg_max_scale;
-                let len = (b - a).clamp(size / s, size * s);
+                let len = (b - a).clamp(size / s, size * s).min(cap.max(size / s));
                 // centre as close to O_c as the blob allows
                 let lo = a + len / 2.0;
                 let hi = b - len / 2.0;
@@ -1143,8 +1150,9 @@ impl WatershedSiftTracker {
                 };
                 (cc, len)
             };
-            let (cx, fw) = fit_axis(span(&cols, x0), cfg.box_w, tg.centre[0]);
-            let (cy, fh) = fit_axis(span(&rows, y0), cfg.box_h, tg.centre[1]);
+            let (cy, fh) = fit_axis(span(&rows, y0), cfg.box_h, tg.centre[1], f64::INFINITY);
+            let wcap = cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh;
+            let (cx, fw) = fit_axis(span(&cols, x0), cfg.box_w, tg.centre[0], wcap);
             fits[k] = Some([cx - tg.centre[0], cy - tg.centre[1], fw, fh]);
         }
         let (fg_box, fg_gate) = (cfg.fg_box, cfg.fg_gate);
@@ -1175,6 +1183,225 @@ impl WatershedSiftTracker {
                 Some(fixed(tg.centre))
             };
         }
+    }
+
+    /// Foreground births (`fg_births`, see the config docs): blobs of foreground that no live
+    /// target's box covers, confirmed over `birth_frames` frames, start targets on the unowned
+    /// regions whose minima lie in the blob. Returns the number of targets created.
+    fn foreground_births(
+        &mut self,
+        seg: &Segmentation,
+        frame: &Plane<u8>,
+        t: u64,
+    ) -> Result<usize, TrackerError> {
+        const CELL: usize = 4;
+        let Some(bg) = self
+            .background
+            .as_ref()
+            .filter(|b| b.samples_held() >= 3.min(b.params().samples))
+        else {
+            self.birth_candidates.clear();
+            return Ok(0);
+        };
+        let cfg = &self.cfg;
+        let (w, h) = (seg.labels.width as usize, seg.labels.height as usize);
+        let (gw, gh) = (w.div_ceil(CELL), h.div_ceil(CELL));
+        let back = &bg.background().data;
+        // cells with at least a quarter of their pixels in the foreground
+        let mut count = vec![0u16; gw * gh];
+        for y in 0..h {
+            let crow = (y / CELL) * gw;
+            for x in 0..w {
+                let i = y * w + x;
+                if frame.data[i].abs_diff(back[i]) > cfg.fg_threshold {
+                    count[crow + x / CELL] += 1;
+                }
+            }
+        }
+        let mut cell: Vec<bool> = (0..gw * gh)
+            .map(|c| {
+                let (cx, cy) = (c % gw, c / gw);
+                let cw = CELL.min(w - cx * CELL);
+                let ch = CELL.min(h - cy * CELL);
+                usize::from(count[c]) * 4 >= cw * ch
+            })
+            .collect();
+        // cells whose centre lies in a live target's box are covered
+        for tg in &self.targets {
+            let b = tg.report.unwrap_or(BBox {
+                cx: tg.centre[0],
+                cy: tg.centre[1],
+                w: cfg.box_w,
+                h: cfg.box_h,
+            });
+            let (l, tp) = (b.cx - b.w / 2.0, b.cy - b.h / 2.0);
+            let c0 = ((l / CELL as f64 - 0.5).ceil().max(0.0)) as usize;
+            let r0 = ((tp / CELL as f64 - 0.5).ceil().max(0.0)) as usize;
+            let c1 = ((l + b.w) / CELL as f64 - 0.5).floor();
+            let r1 = ((tp + b.h) / CELL as f64 - 0.5).floor();
+            if c1 < 0.0 || r1 < 0.0 {
+                continue;
+            }
+            let (c1, r1) = ((c1 as usize).min(gw - 1), (r1 as usize).min(gh - 1));
+            for r in r0..=r1 {
+                for c in c0..=c1 {
+                    cell[r * gw + c] = false;
+                }
+            }
+        }
+        // 8-connected blobs of the remaining cells
+        let mut seen = vec![false; gw * gh];
+        let mut blobs: Vec<[f64; 4]> = Vec::new();
+        let mut stack = Vec::new();
+        let min_area = cfg.birth_min_frac * cfg.box_w * cfg.box_h;
+        for start in 0..gw * gh {
+            if !cell[start] || seen[start] {
+                continue;
+            }
+            seen[start] = true;
+            stack.push(start);
+            let (mut n, mut bb) = (0usize, [usize::MAX, usize::MAX, 0, 0]);
+            while let Some(c) = stack.pop() {
+                let (cx, cy) = (c % gw, c / gw);
+                n += 1;
+                bb = [bb[0].min(cx), bb[1].min(cy), bb[2].max(cx), bb[3].max(cy)];
+                for (dx, dy) in [
+                    (-1i64, -1i64),
+                    (0, -1),
+                    (1, -1),
+                    (-1, 0),
+                    (1, 0),
+                    (-1, 1),
+                    (0, 1),
+                    (1, 1),
+                ] {
+                    let (nx, ny) = (cx as i64 + dx, cy as i64 + dy);
+                    if nx < 0 || ny < 0 || nx >= gw as i64 || ny >= gh as i64 {
+                        continue;
+                    }
+                    let q = ny as usize * gw + nx as usize;
+                    if cell[q] && !seen[q] {
+                        seen[q] = true;
+                        stack.push(q);
+                    }
+                }
+            }
+            let area = (n * CELL * CELL) as f64;
+            let px = [
+                (bb[0] * CELL) as f64,
+                (bb[1] * CELL) as f64,
+                ((bb[2] + 1) * CELL).min(w) as f64,
+                ((bb[3] + 1) * CELL).min(h) as f64,
+            ];
+            if area >= min_area && px[3] - px[1] >= 0.5 * cfg.box_h {
+                blobs.push(px);
+            }
+        }
+        let iou = |a: &[f64; 4], b: &[f64; 4]| {
+            let ix = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+            let iy = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+            let i = ix * iy;
+            let u = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - i;
+            if u > 0.0 { i / u } else { 0.0 }
+        };
+        let prev = std::mem::take(&mut self.birth_candidates);
+        let mut next = Vec::new();
+        let mut created = 0;
+        let mut owned = vec![false; seg.n_regions() + 1];
+        for tg in &self.targets {
+            for r in &tg.regions {
+                if let Some(o) = owned.get_mut(r.label as usize) {
+                    *o = true;
+                }
+            }
+        }
+        for b in blobs {
+            let streak = prev
+                .iter()
+                .filter(|(p, _)| iou(p, &b) >= 0.3)
+                .map(|(_, s)| *s)
+                .max()
+                .unwrap_or(0)
+                + 1;
+            if streak < self.cfg.birth_frames {
+                next.push((b, streak));
+                continue;
+            }
+            let mut labels: Vec<u32> = seg
+                .minima
+                .iter()
+                .enumerate()
+                .filter(|(l, m)| {
+                    let (x, y) = (f64::from(m.representative.0), f64::from(m.representative.1));
+                    !owned[l + 1] && x >= b[0] && x < b[2] && y >= b[1] && y < b[3]
+                })
+                .map(|(l, _)| l as u32 + 1)
+                .collect();
+            if labels.is_empty() {
+                let (x, y) = (
+                    ((b[0] + b[2]) / 2.0) as usize,
+                    ((b[1] + b[3]) / 2.0) as usize,
+                );
+                let l = seg.labels.data[y.min(h - 1) * w + x.min(w - 1)];
+                if !owned[l as usize] {
+                    labels.push(l);
+                }
+            }
+            if labels.is_empty() {
+                next.push((b, streak));
+                continue;
+            }
+            let regions: Vec<RegionRef> = labels
+                .iter()
+                .map(|&l| RegionRef {
+                    label: l,
+                    minimum: seg.minima[l as usize - 1].representative,
+                    provenance: Provenance::MovingPoint,
+                })
+                .collect();
+            let n = regions.len() as f64;
+            let centre = [
+                regions.iter().map(|r| f64::from(r.minimum.0)).sum::<f64>() / n,
+                regions.iter().map(|r| f64::from(r.minimum.1)).sum::<f64>() / n,
+            ];
+            let cfg = &self.cfg;
+            let s = cfg.fg_max_scale;
+            let fh = (b[3] - b[1]).clamp(cfg.box_h / s, cfg.box_h * s);
+            let wcap = (cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh).max(cfg.box_w / s);
+            let fw = (b[2] - b[0]).clamp(cfg.box_w / s, cfg.box_w * s).min(wcap);
+            let bc = [(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0];
+            let fit = [bc[0] - centre[0], bc[1] - centre[1], fw, fh];
+            for &l in &labels {
+                owned[l as usize] = true;
+            }
+            let id = TrackId(self.next_id);
+            self.next_id += 1;
+            created += 1;
+            self.targets.push(Target {
+                id,
+                occluded: false,
+                regions,
+                centre,
+                pool: WeightedPool::new(self.cfg.pool_params())?,
+                prev_desc: Vec::new(),
+                born: t,
+                history: VecDeque::new(),
+                lost: 0,
+                fresh: true,
+                placed: false,
+                fuse_streak: BTreeMap::new(),
+                fit: Some(fit),
+                no_fg: 0,
+                report: Some(BBox {
+                    cx: bc[0],
+                    cy: bc[1],
+                    w: fw,
+                    h: fh,
+                }),
+            });
+        }
+        self.birth_candidates = next;
+        Ok(created)
     }
 
     /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
