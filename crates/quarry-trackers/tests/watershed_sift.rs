@@ -264,3 +264,50 @@ fn deterministic() {
     let b = run(config(true), &frames);
     assert_eq!(a, b);
 }
+
+/// IoU of a report's box with the silhouette's bounding box at centre `c`.
+fn silhouette_iou(r: &TrackReport, c: [f64; 2]) -> f64 {
+    let b = r.bbox.unwrap();
+    let s = quarry_core::BBox {
+        cx: c[0],
+        cy: c[1],
+        w: 2.0 * RX + 1.0,
+        h: 2.0 * RY + 1.0,
+    };
+    b.iou(&s)
+}
+
+/// `robust` (`fg_box`): with a configured person size 1.4 times the walker's, the paper's fixed
+/// box cannot reach IoU 0.5 with the walker, while the box fitted to the foreground follows the
+/// walker's own extent.
+#[test]
+fn robust_box_fits_the_walker_not_the_configured_size() {
+    let wk = Walker {
+        start: [20.0, 60.0],
+        vel: [2.0, 0.0],
+        t0: 0,
+        mean: 80.0,
+    };
+    let frames = video(&[wk], 90, 5);
+    let size = (1.4 * (2.0 * RX + 2.0), 1.4 * (2.0 * RY + 2.0));
+    let median_iou = |robust: bool| {
+        let cfg = if robust {
+            WatershedSiftConfig::robust()
+        } else {
+            WatershedSiftConfig::paper()
+        }
+        .with_person_size(size.0, size.1);
+        let out = run(cfg, &frames);
+        let mut ious: Vec<f64> = (30..80)
+            .map(|t| {
+                let c = centre(&wk, t as u64).unwrap();
+                near(&out[t], c, 12.0).map_or(0.0, |r| silhouette_iou(r, c))
+            })
+            .collect();
+        ious.sort_by(f64::total_cmp);
+        ious[ious.len() / 2]
+    };
+    let (paper, robust) = (median_iou(false), median_iou(true));
+    assert!(paper < 0.55, "paper median IoU {paper}");
+    assert!(robust >= 0.7, "robust median IoU {robust} (paper {paper})");
+}

@@ -179,8 +179,9 @@ pub struct WatershedSiftConfig {
     /// diagnosis 1-2). Tracking (centres, regions, pools) is unchanged; only the reported box
     /// differs. Off = the fixed box.
     pub fg_box: bool,
-    /// Do not report a visible target whose window holds fewer than `fg_min_frac`·w·h
-    /// foreground pixels, and terminate it after `lost_frames` such frames \[ext, ours;
+    /// Do not report a visible target whose own regions hold fewer than `fg_min_frac`·w·h
+    /// foreground pixels in its window, and terminate it after `lost_frames` such frames
+    /// \[ext, ours;
     /// `robust`: true\] — a target whose regions froze on static background (a sign, a lamp
     /// post, the spot a person left) has no foreground; a moving person always has.
     pub fg_gate: bool,
@@ -200,8 +201,8 @@ pub struct WatershedSiftConfig {
     /// Half-size of the search window around O_c, in boxes [ours, `robust`: 0.75 — O_c is the
     /// mean of the minima, on the torso or head; the whole person lies within ±0.75 h of it].
     pub fg_window: f64,
-    /// Fewest foreground pixels for a fit, as a fraction of w·h [ours, `robust`: 0.1 — a
-    /// tenth of a person; fewer is noise or a sliver].
+    /// Fewest foreground pixels of the target's own regions for a fit, as a fraction of w·h
+    /// [ours, `robust`: 0.1 — a tenth of a person; fewer is noise or a sliver].
     pub fg_min_frac: f64,
     /// Quantile trimmed at each side of the fitted box [ours, `robust`: 0.02 — isolated
     /// foreground noise must not stretch the box].

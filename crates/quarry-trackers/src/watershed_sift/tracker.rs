@@ -1101,7 +1101,7 @@ impl WatershedSiftTracker {
             );
             let mut cols = vec![0usize; x1 - x0 + 1];
             let mut rows = vec![0usize; y1 - y0 + 1];
-            let mut n = 0usize;
+            let (mut n, mut n_own) = (0usize, 0usize);
             for y in y0..=y1 {
                 let row = y * w;
                 for x in x0..=x1 {
@@ -1110,14 +1110,18 @@ impl WatershedSiftTracker {
                         continue;
                     }
                     let o = &owners[seg.labels.data[i] as usize];
-                    if o.is_empty() || o.contains(&k) {
+                    let own = o.contains(&k);
+                    if o.is_empty() || own {
                         cols[x - x0] += 1;
                         rows[y - y0] += 1;
                         n += 1;
+                        n_own += usize::from(own);
                     }
                 }
             }
-            if (n as f64) < cfg.fg_min_frac * cfg.box_w * cfg.box_h || n == 0 {
+            // support: the foreground must lie in the target's own regions (a target frozen
+            // on a lamp post gets the foreground of people passing it only from other regions)
+            if (n_own as f64) < cfg.fg_min_frac * cfg.box_w * cfg.box_h || n_own == 0 {
                 continue;
             }
             let span = |hist: &[usize], lo0: usize| -> (f64, f64) {
