@@ -149,49 +149,113 @@ pub struct FrameDiagnostics {
     pub times: StageTimes,
 }
 
+/// SIFT keypoints of one padded crop, with descriptors computed on demand.
+struct CropFeatures {
+    /// Keypoints in crop coordinates, as detected.
+    local: Vec<Keypoint>,
+    /// Their descriptors, computed only for keypoints some area asked for.
+    desc: Vec<Option<SiftDescriptor>>,
+    /// The crop's top-left corner in the frame.
+    origin: (u32, u32),
+}
+
 /// SIFT results per crop rectangle of the current frame (spec §2.10: memoised per frame).
+/// Keypoints are detected on the whole padded crop, but a descriptor is computed only for a
+/// keypoint that lies in an area asked for: a descriptor depends only on the crop's scale
+/// space and its own keypoint, so K(A) is exactly what computing every descriptor and then
+/// filtering would give (the padding's keypoints, most of a crop's, are never described).
 struct FeatureCache<'a> {
     frame: &'a Plane<u8>,
     sift: &'a Sift,
     pad: u32,
-    crops: BTreeMap<[u32; 4], (Vec<Keypoint>, Vec<SiftDescriptor>)>,
+    crops: BTreeMap<[u32; 4], CropFeatures>,
     us: f64,
 }
 
 impl FeatureCache<'_> {
-    /// Keypoints and descriptors of the crop `[x0, y0, x1, y1]` (inclusive) padded by `pad`,
-    /// in frame coordinates.
+    /// The scale space of the crop `[x0, y0, x1, y1]` (inclusive).
+    fn scale_space(&self, key: [u32; 4]) -> Result<quarry_vision::sift::ScaleSpace, TrackerError> {
+        let w = self.frame.width as usize;
+        let (x0, y0) = (key[0], key[1]);
+        let sub = Plane::from_fn(key[2] - x0 + 1, key[3] - y0 + 1, |x, y| {
+            f32::from(self.frame.data[(y0 + y) as usize * w + (x0 + x) as usize])
+        });
+        Ok(self.sift.scale_space(&sub)?)
+    }
+
+    /// Keypoints (frame coordinates) and descriptors of the crop `[x0, y0, x1, y1]`
+    /// (inclusive) padded by `pad`, restricted to the keypoints for which `keep(x, y)` holds.
     fn crop(
         &mut self,
         rect: [u32; 4],
-    ) -> Result<&(Vec<Keypoint>, Vec<SiftDescriptor>), TrackerError> {
+        keep: impl Fn(f32, f32) -> bool,
+    ) -> Result<(Vec<[f64; 2]>, Vec<SiftDescriptor>), TrackerError> {
+        let t = Instant::now();
         let (w, h) = self.frame.dimensions();
         let x0 = rect[0].saturating_sub(self.pad);
         let y0 = rect[1].saturating_sub(self.pad);
         let x1 = (rect[2] + self.pad).min(w - 1);
         let y1 = (rect[3] + self.pad).min(h - 1);
         let key = [x0, y0, x1, y1];
+        let mut fresh = None;
         if !self.crops.contains_key(&key) {
-            let t = Instant::now();
             let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-            let result = if cw < quarry_vision::sift::MIN_SIDE || ch < quarry_vision::sift::MIN_SIDE
+            let local = if cw < quarry_vision::sift::MIN_SIDE || ch < quarry_vision::sift::MIN_SIDE
             {
-                (Vec::new(), Vec::new())
+                Vec::new()
             } else {
-                let sub = Plane::from_fn(cw, ch, |x, y| {
-                    self.frame.data[(y0 + y) as usize * w as usize + (x0 + x) as usize]
-                });
-                let (mut kps, d) = self.sift.extract(&sub)?;
-                for k in &mut kps {
-                    k.x += x0 as f32;
-                    k.y += y0 as f32;
-                }
-                (kps, d)
+                let ss = self.scale_space(key)?;
+                let kps = self.sift.detect_in(&ss);
+                fresh = Some(ss);
+                kps
             };
-            self.us += t.elapsed().as_secs_f64() * 1e6;
-            self.crops.insert(key, result);
+            let desc = vec![None; local.len()];
+            self.crops.insert(
+                key,
+                CropFeatures {
+                    local,
+                    desc,
+                    origin: (x0, y0),
+                },
+            );
         }
-        Ok(&self.crops[&key])
+        let frame_xy =
+            |c: &CropFeatures, k: &Keypoint| (k.x + c.origin.0 as f32, k.y + c.origin.1 as f32);
+        let entry = &self.crops[&key];
+        let wanted: Vec<usize> = (0..entry.local.len())
+            .filter(|&i| {
+                let (x, y) = frame_xy(entry, &entry.local[i]);
+                entry.desc[i].is_none() && keep(x, y)
+            })
+            .collect();
+        if !wanted.is_empty() {
+            let ss = match fresh {
+                Some(ss) => ss,
+                None => self.scale_space(key)?,
+            };
+            let kps: Vec<Keypoint> = wanted.iter().map(|&i| entry.local[i]).collect();
+            let d = self.sift.describe_in(&ss, &kps)?;
+            let entry = self
+                .crops
+                .get_mut(&key)
+                .ok_or_else(|| TrackerError::State("internal: crop cache entry".into()))?;
+            for (&i, v) in wanted.iter().zip(&d) {
+                entry.desc[i] = Some(quarry_vision::sift::quantize(v));
+            }
+        }
+        let entry = &self.crops[&key];
+        let (mut pos, mut out) = (Vec::new(), Vec::new());
+        for (k, d) in entry.local.iter().zip(&entry.desc) {
+            let (x, y) = frame_xy(entry, k);
+            if let Some(d) = d
+                && keep(x, y)
+            {
+                pos.push([f64::from(x), f64::from(y)]);
+                out.push(*d);
+            }
+        }
+        self.us += t.elapsed().as_secs_f64() * 1e6;
+        Ok((pos, out))
     }
 }
 
@@ -345,24 +409,17 @@ impl WatershedSiftTracker {
         if r[0] > r[2] || r[1] > r[3] {
             return Ok((Vec::new(), Vec::new()));
         }
-        let (kps, desc) = cache.crop(r)?;
-        let mut pos = Vec::new();
-        let mut out = Vec::new();
-        for (k, d) in kps.iter().zip(desc) {
-            let (x, y) = pixel([f64::from(k.x), f64::from(k.y)], w, h);
+        let keep = |kx: f32, ky: f32| {
+            let (x, y) = pixel([f64::from(kx), f64::from(ky)], w, h);
             if let Some(c) = clip {
                 let (fx, fy) = (f64::from(x), f64::from(y));
                 if !(fx >= c[0] && fx < c[2] && fy >= c[1] && fy < c[3]) {
-                    continue;
+                    return false;
                 }
             }
-            let l = seg.labels.data[y as usize * w as usize + x as usize];
-            if labels.contains(&l) {
-                pos.push([f64::from(k.x), f64::from(k.y)]);
-                out.push(*d);
-            }
-        }
-        Ok((pos, out))
+            labels.contains(&seg.labels.data[y as usize * w as usize + x as usize])
+        };
+        cache.crop(r, keep)
     }
 
     fn roi_clip(&self, c: [f64; 2]) -> [f64; 4] {
