@@ -225,6 +225,13 @@ pub struct WatershedSiftConfig {
     /// the ground (no minimum on them), people standing or walking slowly, and the second
     /// person of a pair whose blurred images share one minimum (docs/video-tracker.md).
     pub fg_births: bool,
+    /// Background regions take no part in steps 4 and 6 \[ext, ours; `robust`: true\]: a
+    /// region holding fewer than `fg_min_frac`/4 · w·h foreground pixels is not a candidate
+    /// fragment for the SIFT ownership test (step 4) and its moving point neither joins nor
+    /// starts a target (step 6). A person's fragment or moving minimum lies on foreground;
+    /// static background cannot belong to a target. Spec §2.10 makes SIFT the largest cost,
+    /// and most fragments are background ("SIFT only where needed").
+    pub fg_skip_background: bool,
     /// Smallest uncovered foreground blob for a birth, as a fraction of w·h [ours, `robust`:
     /// 0.3 — a silhouette fills about 60 % of its box; half of it must be uncovered].
     pub birth_min_frac: f64,
@@ -291,6 +298,7 @@ impl WatershedSiftConfig {
             fg_max_scale: 1.6,
             fg_max_aspect: 1.3,
             fg_births: false,
+            fg_skip_background: false,
             birth_min_frac: 0.3,
             birth_frames: 3,
         }
@@ -311,6 +319,7 @@ impl WatershedSiftConfig {
             fg_box: true,
             fg_gate: true,
             fg_births: true,
+            fg_skip_background: true,
             ..Self::paper()
         }
     }

@@ -506,6 +506,16 @@ impl WatershedSiftTracker {
         let minimum = |l: u32| seg.minima[l as usize - 1].representative;
         let n_t = self.targets.len();
 
+        // ----- [ext] regions with foreground (fg_skip_background) -----
+        let tfg = Instant::now();
+        let fg_regions = self.foreground_regions(&seg, frame);
+        let t_fgr = tfg.elapsed().as_secs_f64() * 1e6;
+        let background_region = |j: u32| {
+            fg_regions
+                .as_ref()
+                .is_some_and(|f| !f.get(j as usize).copied().unwrap_or(false))
+        };
+
         // ----- occlusion detection (§2.14) -----
         let mut groups: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
         for (k, tg) in self.targets.iter().enumerate() {
@@ -714,7 +724,7 @@ impl WatershedSiftTracker {
             // step 4: fragments, by the ownership test
             for r in s {
                 for &j in map.fragments(r.label) {
-                    if claims[k].iter().any(|c| c.label == j) {
+                    if claims[k].iter().any(|c| c.label == j) || background_region(j) {
                         continue;
                     }
                     let (_, d) = Self::features(&mut cache, &seg, &geo, &[j], None)?;
@@ -781,7 +791,7 @@ impl WatershedSiftTracker {
         let mut consumed: BTreeSet<u32> = BTreeSet::new();
         for mi in 0..moving.len() {
             let (j, _, disp) = moving[mi];
-            if consumed.contains(&j) || owned_by(&claims, j) {
+            if consumed.contains(&j) || owned_by(&claims, j) || background_region(j) {
                 continue;
             }
             let neigh: Vec<usize> = (0..claims.len())
@@ -1044,7 +1054,7 @@ impl WatershedSiftTracker {
                 (m.len() >= 2).then_some((l, m))
             })
             .collect();
-        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us - t_fit;
+        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us - t_fit - t_fgr;
 
         // ----- reports -----
         let mut reports = Vec::new();
@@ -1099,7 +1109,7 @@ impl WatershedSiftTracker {
                 map_us: t_map,
                 sift_us,
                 track_us: t_track.max(0.0),
-                foreground_us: t_bg + t_fit,
+                foreground_us: t_bg + t_fgr + t_fit,
             },
         };
         Ok(reports)
@@ -1244,6 +1254,30 @@ impl WatershedSiftTracker {
                 Some(fixed(tg.centre))
             };
         }
+    }
+
+    /// With `fg_skip_background` and a background of at least 3 samples: per label (index =
+    /// label), whether the region holds at least `fg_min_frac`/4 · w·h foreground pixels.
+    fn foreground_regions(&self, seg: &Segmentation, frame: &Plane<u8>) -> Option<Vec<bool>> {
+        let bg = self.background.as_ref().filter(|b| {
+            self.cfg.fg_skip_background && b.samples_held() >= 3.min(b.params().samples)
+        })?;
+        let mut count = vec![0u32; seg.n_regions() + 1];
+        let thr = self.cfg.fg_threshold;
+        for ((&v, &b), &l) in frame
+            .data
+            .iter()
+            .zip(&bg.background().data)
+            .zip(&seg.labels.data)
+        {
+            if v.abs_diff(b) > thr {
+                if let Some(c) = count.get_mut(l as usize) {
+                    *c += 1;
+                }
+            }
+        }
+        let min = self.cfg.fg_min_frac / 4.0 * self.cfg.box_w * self.cfg.box_h;
+        Some(count.iter().map(|&c| f64::from(c) >= min).collect())
     }
 
     /// Foreground births (`fg_births`, see the config docs): blobs of foreground that no live
