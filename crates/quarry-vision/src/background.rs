@@ -45,7 +45,7 @@ pub struct MedianBackgroundParams {
 impl MedianBackgroundParams {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), VisionError> {
-        if self.samples == 0 || self.samples % 2 == 0 || self.samples > MAX_SAMPLES {
+        if self.samples == 0 || self.samples.is_multiple_of(2) || self.samples > MAX_SAMPLES {
             return Err(CoreError::invalid(
                 "samples",
                 format!("must be odd and in 1..={MAX_SAMPLES}, got {}", self.samples),
@@ -126,7 +126,7 @@ impl MedianBackground {
             self.width = frame.width;
             self.height = frame.height;
         }
-        if self.frames % self.params.every as u64 == 0 {
+        if self.frames.is_multiple_of(self.params.every as u64) {
             if self.ring.len() < self.params.samples {
                 self.ring.push(frame.data.clone());
             } else {

@@ -1217,7 +1217,7 @@ impl WatershedSiftTracker {
                 let cc = if lo <= hi {
                     c.clamp(lo, hi)
                 } else {
-                    (a + b) / 2.0
+                    f64::midpoint(a, b)
                 };
                 (cc, len)
             };
@@ -1270,10 +1270,10 @@ impl WatershedSiftTracker {
             .zip(&bg.background().data)
             .zip(&seg.labels.data)
         {
-            if v.abs_diff(b) > thr {
-                if let Some(c) = count.get_mut(l as usize) {
-                    *c += 1;
-                }
+            if v.abs_diff(b) > thr
+                && let Some(c) = count.get_mut(l as usize)
+            {
+                *c += 1;
             }
         }
         let min = self.cfg.fg_min_frac / 4.0 * self.cfg.box_w * self.cfg.box_h;
@@ -1434,8 +1434,8 @@ impl WatershedSiftTracker {
                 .collect();
             if labels.is_empty() {
                 let (x, y) = (
-                    ((b[0] + b[2]) / 2.0) as usize,
-                    ((b[1] + b[3]) / 2.0) as usize,
+                    f64::midpoint(b[0], b[2]) as usize,
+                    f64::midpoint(b[1], b[3]) as usize,
                 );
                 let l = seg.labels.data[y.min(h - 1) * w + x.min(w - 1)];
                 if !owned[l as usize] {
@@ -1464,7 +1464,7 @@ impl WatershedSiftTracker {
             let fh = (b[3] - b[1]).clamp(cfg.box_h / s, cfg.box_h * s);
             let wcap = (cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh).max(cfg.box_w / s);
             let fw = (b[2] - b[0]).clamp(cfg.box_w / s, cfg.box_w * s).min(wcap);
-            let bc = [(b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0];
+            let bc = [f64::midpoint(b[0], b[2]), f64::midpoint(b[1], b[3])];
             let fit = [bc[0] - centre[0], bc[1] - centre[1], fw, fh];
             for &l in &labels {
                 owned[l as usize] = true;
