@@ -115,32 +115,84 @@ impl MedianBackground {
         &self.background
     }
 
+    /// Whether the next [`update`](Self::update) takes a sample.
+    pub fn sample_due(&self) -> bool {
+        self.frames.is_multiple_of(self.params.every as u64)
+    }
+
     /// Feeds one frame; every `every`-th frame (the first included) becomes a sample and the
     /// median is recomputed.
     ///
     /// Errors: an empty frame, a frame whose data do not match its size, or a frame of another
     /// size than the first.
     pub fn update(&mut self, frame: &Plane<u8>) -> Result<(), VisionError> {
+        self.begin(frame)?;
+        if self.sample_due() {
+            self.push_sample(&frame.data);
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// [`update`](Self::update) with a *selective* sample: where `hold` is true the sample takes
+    /// the current background instead of the frame (a tracked person who stands still does not
+    /// become background). Before the first frame `hold` is ignored.
+    ///
+    /// Errors: as [`update`](Self::update), and a `hold` mask of another size than the frame.
+    pub fn update_selective(
+        &mut self,
+        frame: &Plane<u8>,
+        hold: &Plane<bool>,
+    ) -> Result<(), VisionError> {
+        self.begin(frame)?;
+        if hold.dimensions() != frame.dimensions() || hold.data.len() != frame.data.len() {
+            return Err(VisionError::SizeMismatch {
+                what: "background model hold mask",
+                a: frame.dimensions(),
+                b: hold.dimensions(),
+            });
+        }
+        if self.sample_due() {
+            if self.frames == 0 {
+                self.push_sample(&frame.data);
+            } else {
+                let sample: Vec<u8> = frame
+                    .data
+                    .iter()
+                    .zip(&hold.data)
+                    .zip(&self.background.data)
+                    .map(|((&f, &h), &b)| if h { b } else { f })
+                    .collect();
+                self.push_sample(&sample);
+            }
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Checks `frame` and records the sequence's size on the first frame.
+    fn begin(&mut self, frame: &Plane<u8>) -> Result<(), VisionError> {
         self.check(frame)?;
         if self.frames == 0 {
             self.width = frame.width;
             self.height = frame.height;
         }
-        if self.frames.is_multiple_of(self.params.every as u64) {
-            if self.ring.len() < self.params.samples {
-                self.ring.push(frame.data.clone());
-            } else {
-                self.ring[self.next].copy_from_slice(&frame.data);
-            }
-            self.next = (self.next + 1) % self.params.samples;
-            self.background = Plane {
-                width: self.width,
-                height: self.height,
-                data: median_of(&self.ring),
-            };
-        }
-        self.frames += 1;
         Ok(())
+    }
+
+    /// Stores a sample (of the checked frame size) and recomputes the median.
+    fn push_sample(&mut self, data: &[u8]) {
+        if self.ring.len() < self.params.samples {
+            self.ring.push(data.to_vec());
+        } else {
+            self.ring[self.next].copy_from_slice(data);
+        }
+        self.next = (self.next + 1) % self.params.samples;
+        self.background = Plane {
+            width: self.width,
+            height: self.height,
+            data: median_of(&self.ring),
+        };
     }
 
     /// The foreground mask of `frame` against the current background: `|I − B| > threshold`.
@@ -284,6 +336,35 @@ mod tests {
         // samples: frames 0, 3, 6, 9, 12 → pixel 0: 100 250 100 100 100 → 100;
         // pixel 1: 100 100 10 10 10 → 10 (a visitor in most samples is background)
         assert_eq!(bg.background().data, vec![100, 10]);
+    }
+
+    #[test]
+    fn a_held_pixel_keeps_the_background() {
+        let mut bg = MedianBackground::new(params(3, 1)).unwrap();
+        let grey = Plane::new(2, 1, 100u8);
+        bg.update(&grey).unwrap();
+        // a visitor stands on pixel 0 for 5 frames; held there, it never enters the samples
+        let visitor = Plane {
+            width: 2,
+            height: 1,
+            data: vec![10, 100],
+        };
+        let hold = Plane {
+            width: 2,
+            height: 1,
+            data: vec![true, false],
+        };
+        for _ in 0..5 {
+            bg.update_selective(&visitor, &hold).unwrap();
+        }
+        assert_eq!(bg.background().data, vec![100, 100]);
+        // without the hold it becomes background
+        for _ in 0..3 {
+            bg.update(&visitor).unwrap();
+        }
+        assert_eq!(bg.background().data, vec![10, 100]);
+        let small = Plane::new(1, 1, false);
+        assert!(bg.update_selective(&visitor, &small).is_err());
     }
 
     #[test]

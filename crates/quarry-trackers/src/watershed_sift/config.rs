@@ -185,6 +185,12 @@ pub struct WatershedSiftConfig {
     /// `robust`: true\] — a target whose regions froze on static background (a sign, a lamp
     /// post, the spot a person left) has no foreground; a moving person always has.
     pub fg_gate: bool,
+    /// Selective background update \[ext, ours; `robust`: true\]: when a sample is taken, the
+    /// pixels inside the boxes reported in the previous frame keep the background's value
+    /// instead of the frame's, so a tracked person who stands still stays foreground instead
+    /// of being absorbed after half the ring (docs/video-tracker.md, diagnosis 6). A target
+    /// sitting on a ghost keeps it only until the stuck rule ends the target.
+    pub bg_selective: bool,
     /// Background model: samples in the ring (odd) [ours, `robust`: 9 — with `bg_every` = 4
     /// the ring spans 36 frames, so a person crossing a pixel in under ~18 frames (w/v < 18,
     /// i.e. faster than ≈ 1.8 px/frame for w = 32, the order of the moving-point test's own
@@ -289,6 +295,7 @@ impl WatershedSiftConfig {
             report_after: 0,
             fg_box: false,
             fg_gate: false,
+            bg_selective: false,
             bg_samples: 9,
             bg_every: 4,
             fg_threshold: 20,
@@ -320,6 +327,7 @@ impl WatershedSiftConfig {
             fg_gate: true,
             fg_births: true,
             fg_skip_background: true,
+            bg_selective: true,
             ..Self::paper()
         }
     }

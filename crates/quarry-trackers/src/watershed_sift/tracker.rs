@@ -439,7 +439,25 @@ impl WatershedSiftTracker {
         let t_seg = t0.elapsed().as_secs_f64() * 1e6;
         let tb = Instant::now();
         if let Some(bg) = &mut self.background {
-            bg.update(frame)?;
+            let boxes: Vec<BBox> = self.targets.iter().filter_map(|t| t.report).collect();
+            if self.cfg.bg_selective && bg.sample_due() && !boxes.is_empty() {
+                let mut hold = Plane::new(frame.width, frame.height, false);
+                let (w, h) = (frame.width as usize, frame.height as usize);
+                for b in boxes {
+                    let lo = |c: f64| c.ceil().max(0.0) as usize;
+                    let (x0, y0) = (lo(b.cx - b.w / 2.0), lo(b.cy - b.h / 2.0));
+                    let (x1, y1) = (
+                        ((b.cx + b.w / 2.0).ceil().max(0.0) as usize).min(w),
+                        ((b.cy + b.h / 2.0).ceil().max(0.0) as usize).min(h),
+                    );
+                    for y in y0.min(h)..y1 {
+                        hold.data[y * w + x0.min(x1)..y * w + x1].fill(true);
+                    }
+                }
+                bg.update_selective(frame, &hold)?;
+            } else {
+                bg.update(frame)?;
+            }
         }
         let t_bg = tb.elapsed().as_secs_f64() * 1e6;
         let t = stamp.frame.0;
