@@ -191,6 +191,12 @@ pub struct WatershedSiftConfig {
     /// of being absorbed after half the ring (docs/video-tracker.md, diagnosis 6). A target
     /// sitting on a ghost keeps it only until the stuck rule ends the target.
     pub bg_selective: bool,
+    /// The stuck rule (§2.16) spares a target that is reported with foreground support this
+    /// frame \[ext, ours; `robust`: true\]: with `fg_gate` and `bg_selective` a target whose
+    /// regions froze on background has no foreground and ends through the gate, while a
+    /// target on a person standing still keeps foreground and would otherwise be ended after
+    /// `stuck_frames` frames (and started again with a new id).
+    pub stuck_needs_no_fg: bool,
     /// Background model: samples in the ring (odd) [ours, `robust`: 9 — with `bg_every` = 4
     /// the ring spans 36 frames, so a person crossing a pixel in under ~18 frames (w/v < 18,
     /// i.e. faster than ≈ 1.8 px/frame for w = 32, the order of the moving-point test's own
@@ -296,6 +302,7 @@ impl WatershedSiftConfig {
             fg_box: false,
             fg_gate: false,
             bg_selective: false,
+            stuck_needs_no_fg: false,
             bg_samples: 9,
             bg_every: 4,
             fg_threshold: 20,
@@ -328,6 +335,7 @@ impl WatershedSiftConfig {
             fg_births: true,
             fg_skip_background: true,
             bg_selective: true,
+            stuck_needs_no_fg: true,
             ..Self::paper()
         }
     }

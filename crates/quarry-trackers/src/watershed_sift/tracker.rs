@@ -1059,7 +1059,10 @@ impl WatershedSiftTracker {
             let c = tg.centre;
             let in_band = c[0] < bw || c[0] > fw - bw || c[1] < bh || c[1] > fh - bh;
             let exit = in_band && d_k(cfg.exit_frames).is_some_and(|d| d < cfg.still_px);
-            let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px);
+            // with the foreground gate, a target on foreground is a person standing, not
+            // regions frozen on background: the gate ends the latter (`stuck_needs_no_fg`)
+            let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px)
+                && !(cfg.stuck_needs_no_fg && tg.no_fg == 0 && tg.report.is_some());
             let lost = tg.lost > cfg.lost_frames || tg.no_fg > cfg.lost_frames;
             !(exit || stuck || lost)
         });
