@@ -92,6 +92,35 @@ pub struct Target {
     report: Option<BBox>,
 }
 
+impl Target {
+    /// A target created at frame `born` (its pool is seeded at its first step 8).
+    fn start(
+        id: TrackId,
+        centre: [f64; 2],
+        regions: Vec<RegionRef>,
+        pool: WeightedPool<SiftDescriptor>,
+        born: u64,
+    ) -> Self {
+        Self {
+            id,
+            occluded: false,
+            regions,
+            centre,
+            pool,
+            prev_desc: Vec::new(),
+            born,
+            history: VecDeque::new(),
+            lost: 0,
+            fresh: true,
+            placed: false,
+            fuse_streak: BTreeMap::new(),
+            fit: None,
+            no_fg: 0,
+            report: None,
+        }
+    }
+}
+
 /// Per-target diagnostics of one frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TargetDiagnostics {
@@ -892,23 +921,13 @@ impl WatershedSiftTracker {
             let id = TrackId(self.next_id);
             self.next_id += 1;
             created += 1;
-            self.targets.push(Target {
+            self.targets.push(Target::start(
                 id,
-                occluded: false,
-                regions: Vec::new(),
                 centre,
-                pool: WeightedPool::new(self.cfg.pool_params())?,
-                prev_desc: Vec::new(),
-                born: t,
-                history: VecDeque::new(),
-                lost: 0,
-                fresh: true,
-                placed: false,
-                fuse_streak: BTreeMap::new(),
-                fit: None,
-                no_fg: 0,
-                report: None,
-            });
+                Vec::new(),
+                WeightedPool::new(self.cfg.pool_params())?,
+                t,
+            ));
             occluded.push(false);
             located.push(None);
             claims.push(
@@ -1381,17 +1400,8 @@ impl WatershedSiftTracker {
                 let (cx, cy) = (c % gw, c / gw);
                 n += 1;
                 bb = [bb[0].min(cx), bb[1].min(cy), bb[2].max(cx), bb[3].max(cy)];
-                for (dx, dy) in [
-                    (-1i64, -1i64),
-                    (0, -1),
-                    (1, -1),
-                    (-1, 0),
-                    (1, 0),
-                    (-1, 1),
-                    (0, 1),
-                    (1, 1),
-                ] {
-                    let (nx, ny) = (cx as i64 + dx, cy as i64 + dy);
+                for &(dx, dy) in quarry_vision::Connectivity::Eight.offsets() {
+                    let (nx, ny) = (cx as i64 + i64::from(dx), cy as i64 + i64::from(dy));
                     if nx < 0 || ny < 0 || nx >= gw as i64 || ny >= gh as i64 {
                         continue;
                     }
@@ -1493,28 +1503,21 @@ impl WatershedSiftTracker {
             let id = TrackId(self.next_id);
             self.next_id += 1;
             created += 1;
-            self.targets.push(Target {
+            let mut target = Target::start(
                 id,
-                occluded: false,
-                regions,
                 centre,
-                pool: WeightedPool::new(self.cfg.pool_params())?,
-                prev_desc: Vec::new(),
-                born: t,
-                history: VecDeque::new(),
-                lost: 0,
-                fresh: true,
-                placed: false,
-                fuse_streak: BTreeMap::new(),
-                fit: Some(fit),
-                no_fg: 0,
-                report: Some(BBox {
-                    cx: bc[0],
-                    cy: bc[1],
-                    w: fw,
-                    h: fh,
-                }),
+                regions,
+                WeightedPool::new(self.cfg.pool_params())?,
+                t,
+            );
+            target.fit = Some(fit);
+            target.report = Some(BBox {
+                cx: bc[0],
+                cy: bc[1],
+                w: fw,
+                h: fh,
             });
+            self.targets.push(target);
         }
         self.birth_candidates = next;
         Ok(created)
