@@ -186,13 +186,16 @@ pub struct WatershedSiftConfig {
     /// post, the spot a person left) has no foreground; a moving person always has.
     pub fg_gate: bool,
     /// Selective background update \[ext, ours; `robust`: true\]: when a sample is taken, the
-    /// pixels inside the boxes reported in the previous frame keep the background's value
-    /// instead of the frame's, so a tracked person who stands still stays foreground instead
-    /// of being absorbed after half the ring (docs/video-tracker.md, diagnosis 6). A target
-    /// sitting on a ghost keeps it only until the stuck rule ends the target.
+    /// pixels inside the boxes reported in the previous frame by targets that have moved
+    /// (their centre was once half a box width from where it started) keep the background's
+    /// value instead of the frame's, so a tracked person who stops stays foreground instead of
+    /// being absorbed after half the ring (docs/video-tracker.md, diagnosis 6). Targets that
+    /// never moved hold nothing: a target born on a ghost (foreground left where someone
+    /// stood while the background warmed up) would otherwise keep its ghost for ever.
     pub bg_selective: bool,
-    /// The stuck rule (§2.16) spares a target that is reported with foreground support this
-    /// frame \[ext, ours; `robust`: true\]: with `fg_gate` and `bg_selective` a target whose
+    /// The stuck rule (§2.16) spares a target that has moved (see `bg_selective`) and is
+    /// reported with foreground support this frame \[ext, ours; `robust`: true\]: with
+    /// `fg_gate` and `bg_selective` a target whose
     /// regions froze on background has no foreground and ends through the gate, while a
     /// target on a person standing still keeps foreground and would otherwise be ended after
     /// `stuck_frames` frames (and started again with a new id).

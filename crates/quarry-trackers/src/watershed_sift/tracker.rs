@@ -90,6 +90,10 @@ pub struct Target {
     no_fg: usize,
     /// The box reported this frame (None: not reported).
     report: Option<BBox>,
+    /// The centre at the first frame that ended (for `moved`).
+    origin: Option<[f64; 2]>,
+    /// The centre has been half a box width away from `origin` at some frame.
+    moved: bool,
 }
 
 impl Target {
@@ -117,6 +121,8 @@ impl Target {
             fit: None,
             no_fg: 0,
             report: None,
+            origin: None,
+            moved: false,
         }
     }
 }
@@ -468,7 +474,14 @@ impl WatershedSiftTracker {
         let t_seg = t0.elapsed().as_secs_f64() * 1e6;
         let tb = Instant::now();
         if let Some(bg) = &mut self.background {
-            let boxes: Vec<BBox> = self.targets.iter().filter_map(|t| t.report).collect();
+            // only targets seen moving: a target born on a ghost (foreground left where a
+            // person stood while the background warmed up) must not keep its ghost
+            let boxes: Vec<BBox> = self
+                .targets
+                .iter()
+                .filter(|t| t.moved)
+                .filter_map(|t| t.report)
+                .collect();
             if self.cfg.bg_selective && bg.sample_due() && !boxes.is_empty() {
                 let mut hold = Plane::new(frame.width, frame.height, false);
                 let (w, h) = (frame.width as usize, frame.height as usize);
@@ -1064,6 +1077,10 @@ impl WatershedSiftTracker {
         let cfg = &self.cfg;
         self.targets.retain_mut(|tg| {
             tg.history.push_back(tg.centre);
+            let origin = tg.origin.get_or_insert(tg.centre);
+            if (tg.centre[0] - origin[0]).hypot(tg.centre[1] - origin[1]) >= cfg.box_w / 2.0 {
+                tg.moved = true;
+            }
             let keep = cfg.exit_frames.max(cfg.stuck_frames) + 1;
             while tg.history.len() > keep {
                 tg.history.pop_front();
@@ -1081,7 +1098,7 @@ impl WatershedSiftTracker {
             // with the foreground gate, a target on foreground is a person standing, not
             // regions frozen on background: the gate ends the latter (`stuck_needs_no_fg`)
             let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px)
-                && !(cfg.stuck_needs_no_fg && tg.no_fg == 0 && tg.report.is_some());
+                && !(cfg.stuck_needs_no_fg && tg.moved && tg.no_fg == 0 && tg.report.is_some());
             let lost = tg.lost > cfg.lost_frames || tg.no_fg > cfg.lost_frames;
             !(exit || stuck || lost)
         });
