@@ -264,3 +264,97 @@ fn deterministic() {
     let b = run(config(true), &frames);
     assert_eq!(a, b);
 }
+
+/// IoU of a report's box with the silhouette's bounding box at centre `c`.
+fn silhouette_iou(r: &TrackReport, c: [f64; 2]) -> f64 {
+    let b = r.bbox.unwrap();
+    let s = quarry_core::BBox {
+        cx: c[0],
+        cy: c[1],
+        w: 2.0 * RX + 1.0,
+        h: 2.0 * RY + 1.0,
+    };
+    b.iou(&s)
+}
+
+/// `robust` (`fg_box`): with a configured person size 1.4 times the walker's, the paper's fixed
+/// box cannot reach IoU 0.5 with the walker, while the box fitted to the foreground follows the
+/// walker's own extent.
+#[test]
+fn robust_box_fits_the_walker_not_the_configured_size() {
+    let wk = Walker {
+        start: [20.0, 60.0],
+        vel: [2.0, 0.0],
+        t0: 0,
+        mean: 80.0,
+    };
+    let frames = video(&[wk], 90, 5);
+    let size = (1.4 * (2.0 * RX + 2.0), 1.4 * (2.0 * RY + 2.0));
+    let median_iou = |robust: bool| {
+        let cfg = if robust {
+            WatershedSiftConfig::robust()
+        } else {
+            WatershedSiftConfig::paper()
+        }
+        .with_person_size(size.0, size.1);
+        let out = run(cfg, &frames);
+        let mut ious: Vec<f64> = (30..80)
+            .map(|t| {
+                let c = centre(&wk, t as u64).unwrap();
+                near(&out[t], c, 12.0).map_or(0.0, |r| silhouette_iou(r, c))
+            })
+            .collect();
+        ious.sort_by(f64::total_cmp);
+        ious[ious.len() / 2]
+    };
+    let (paper, robust) = (median_iou(false), median_iou(true));
+    assert!(paper < 0.55, "paper median IoU {paper}");
+    assert!(robust >= 0.7, "robust median IoU {robust} (paper {paper})");
+}
+
+/// Seeded random small frame sequences through both profiles (the fuzz target's input space on
+/// stable Rust, so the foreground extensions' box and blob arithmetic is exercised at image
+/// borders and on 1-px frames): errors are allowed, panics and non-finite boxes are not.
+#[test]
+fn random_small_sequences_never_panic() {
+    let mut rng = StdRng::seed_from_u64(2024);
+    let mut steps = 0usize;
+    for case in 0..160u32 {
+        let base = if case % 2 == 0 {
+            WatershedSiftConfig::paper()
+        } else {
+            WatershedSiftConfig::robust()
+        };
+        let pw = f64::from(rng.random_range(4u32..20));
+        let mut tr = WatershedSiftTracker::new(base.with_person_size(pw, 2.5 * pw)).unwrap();
+        let (mut w, mut h) = (rng.random_range(1u32..49), rng.random_range(1u32..49));
+        let blob = rng.random_range(0u32..2) == 1;
+        for k in 0..rng.random_range(1u64..25) {
+            if rng.random_range(0u32..12) == 0 {
+                (w, h) = (rng.random_range(1u32..49), rng.random_range(1u32..49));
+            }
+            let frame = Plane::from_fn(w, h, |x, y| {
+                // half the cases: a dark square walking on noise, the others pure noise
+                let inside = blob
+                    && (i64::from(x) - 2 * k as i64).abs() < 4
+                    && (i64::from(y) - i64::from(h / 2)).abs() < 8;
+                if inside {
+                    30
+                } else {
+                    ((x * 31 + y * 17 + k as u32 * 7 + case) % 97 + 120) as u8
+                }
+            });
+            if let Ok(reports) = tr.step(Stamp::from_frame(k, 0.04), &frame) {
+                steps += 1;
+                for r in reports {
+                    let b = r.bbox.unwrap();
+                    assert!(
+                        [b.cx, b.cy, b.w, b.h].iter().all(|v| v.is_finite()),
+                        "case {case} frame {k}: {b:?}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(steps > 500, "only {steps} frames were accepted");
+}

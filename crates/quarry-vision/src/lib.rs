@@ -6,7 +6,8 @@
 //! ([`watershed`](mod@watershed)), region adjacency and statistics ([`adjacency`]), region mapping
 //! between frames ([`mapping`]), minimum trajectories and the moving-point test
 //! ([`moving_points`]), SIFT ([`sift`]), descriptor matching ([`matching`]) and the weighted
-//! feature pool of spec 004 ([`features::pool`]). Appearance
+//! feature pool of spec 004 ([`features::pool`]), and a running median background with its
+//! foreground mask ([`background`]). Appearance
 //! descriptors of spec 001: hue binning ([`colour`]), Ojala LBP with riu2 / u2 mappings
 //! ([`lbp`]), normalised and depth histograms ([`histogram`]), per-pixel weights including the
 //! depth band ([`depth_weights`]) and N×N patch histograms ([`patches`]).
@@ -41,6 +42,7 @@
 //! ```
 
 pub mod adjacency;
+pub mod background;
 pub mod blur;
 pub mod colour;
 pub mod convert;
@@ -66,6 +68,7 @@ mod simd;
 pub mod watershed;
 
 pub use adjacency::{RegionAdjacency, RegionStats, region_stats};
+pub use background::{MedianBackground, MedianBackgroundParams};
 pub use blur::{Border, GaussianKernel, gaussian_blur_f32, gaussian_blur_f64};
 pub use colour::HueBinner;
 pub use depth_weights::{DepthBand, PixelWeight};

@@ -31,7 +31,9 @@ use crate::progress;
 sequence from a static camera: no detector and no initial boxes. Each frame is segmented (ramp, \
 f64 Gaussian blur, watershed); regions are mapped onto the previous frame's; regularly moving \
 minima start targets; each target keeps a weighted pool of SIFT descriptors that decides splits, \
-occlusions and separations. Each target is reported as a fixed box of the typical person size.
+occlusions and separations. Each target is reported as a fixed box of the typical person size \
+(paper), or in the robust profile as the box fitted to its foreground pixels against a running \
+median background, which also starts targets on uncovered foreground (docs/video-tracker.md).
 
 INPUT: --frames DIR holds the frames as PNG or JPEG files taken in file-name order (MOTChallenge's \
 img1/000001.jpg); the k-th file is MOTChallenge frame k. Colour is converted to grey with \
@@ -56,7 +58,8 @@ Ctrl-C (or SIGTERM) stops after the current frame: the results so far are writte
 
 JSON (--json) prints one object with: name, frames, interrupted, profile, results (path), \
 tracks (distinct ids), boxes, ms_per_frame (mean tracker time per frame, excluding image I/O and \
-drawing), stages_ms {segment, map, sift, track} (means per frame), config (the configuration \
+drawing), stages_ms {segment, map, sift, track, foreground} (means per frame; foreground = the \
+background model and the robust profile's foreground boxes and births), config (the configuration \
 used), and with --gt: metrics (the object of `quarry eval --json`).
 
 EXAMPLE:
@@ -141,6 +144,7 @@ struct StagesMs {
     map: f64,
     sift: f64,
     track: f64,
+    foreground: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -338,6 +342,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         stages.map += st.map_us / 1e3;
         stages.sift += st.sift_us / 1e3;
         stages.track += st.track_us / 1e3;
+        stages.foreground += st.foreground_us / 1e3;
         processed += 1;
         let mut drawn = Vec::new();
         for r in &reports {
@@ -418,6 +423,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
             map: stages.map / n,
             sift: stages.sift / n,
             track: stages.track / n,
+            foreground: stages.foreground / n,
         },
         config: cfg,
         metrics,

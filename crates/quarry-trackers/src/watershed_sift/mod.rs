@@ -10,6 +10,11 @@
 //! pool of SIFT descriptors (eqs. 9-11) that decides splits, absorptions, occlusions and
 //! separations.
 //!
+//! The `robust` profile adds a running median background (`quarry_vision::MedianBackground`):
+//! each reported box is fitted to the target's foreground pixels, targets without foreground
+//! are not reported, uncovered foreground blobs start targets, and background regions skip
+//! the SIFT ownership test (docs/video-tracker.md has what each bought on PETS09-S2L1).
+//!
 //! | file | holds |
 //! |---|---|
 //! | `config.rs` | [`WatershedSiftConfig`] (every parameter of §3 with its source), [`Profile`], [`Polarity`] |

@@ -8,7 +8,8 @@ use quarry_core::{
     TrackReport, TrackStatus,
 };
 use quarry_vision::{
-    LinkKind, RegionAdjacency, RegionMapping, Sift, SiftDescriptor, SiftParams, WeightedPool,
+    LinkKind, MedianBackground, RegionAdjacency, RegionMapping, Sift, SiftDescriptor, SiftParams,
+    WeightedPool,
 };
 use serde::Serialize;
 
@@ -83,6 +84,47 @@ pub struct Target {
     placed: bool,
     /// Consecutive frames of box overlap with younger targets (fusion, an extension).
     fuse_streak: BTreeMap<TrackId, usize>,
+    /// The last foreground fit (`fg_box`): box centre minus O_c, and size.
+    fit: Option<[f64; 4]>,
+    /// Consecutive visible frames without foreground support (`fg_gate`).
+    no_fg: usize,
+    /// The box reported this frame (None: not reported).
+    report: Option<BBox>,
+    /// The centre at the first frame that ended (for `moved`).
+    origin: Option<[f64; 2]>,
+    /// The centre has been half a box width away from `origin` at some frame.
+    moved: bool,
+}
+
+impl Target {
+    /// A target created at frame `born` (its pool is seeded at its first step 8).
+    fn start(
+        id: TrackId,
+        centre: [f64; 2],
+        regions: Vec<RegionRef>,
+        pool: WeightedPool<SiftDescriptor>,
+        born: u64,
+    ) -> Self {
+        Self {
+            id,
+            occluded: false,
+            regions,
+            centre,
+            pool,
+            prev_desc: Vec::new(),
+            born,
+            history: VecDeque::new(),
+            lost: 0,
+            fresh: true,
+            placed: false,
+            fuse_streak: BTreeMap::new(),
+            fit: None,
+            no_fg: 0,
+            report: None,
+            origin: None,
+            moved: false,
+        }
+    }
 }
 
 /// Per-target diagnostics of one frame.
@@ -111,6 +153,8 @@ pub struct StageTimes {
     pub sift_us: f64,
     /// Everything else: ownership tests, pools, resolution.
     pub track_us: f64,
+    /// Background model update and the foreground box fits (`fg_box`, `fg_gate`).
+    pub foreground_us: f64,
 }
 
 /// What happened in one frame (spec §8 `FrameDiagnostics`, for the figures of §5.3).
@@ -140,49 +184,113 @@ pub struct FrameDiagnostics {
     pub times: StageTimes,
 }
 
+/// SIFT keypoints of one padded crop, with descriptors computed on demand.
+struct CropFeatures {
+    /// Keypoints in crop coordinates, as detected.
+    local: Vec<Keypoint>,
+    /// Their descriptors, computed only for keypoints some area asked for.
+    desc: Vec<Option<SiftDescriptor>>,
+    /// The crop's top-left corner in the frame.
+    origin: (u32, u32),
+}
+
 /// SIFT results per crop rectangle of the current frame (spec §2.10: memoised per frame).
+/// Keypoints are detected on the whole padded crop, but a descriptor is computed only for a
+/// keypoint that lies in an area asked for: a descriptor depends only on the crop's scale
+/// space and its own keypoint, so K(A) is exactly what computing every descriptor and then
+/// filtering would give (the padding's keypoints, most of a crop's, are never described).
 struct FeatureCache<'a> {
     frame: &'a Plane<u8>,
     sift: &'a Sift,
     pad: u32,
-    crops: BTreeMap<[u32; 4], (Vec<Keypoint>, Vec<SiftDescriptor>)>,
+    crops: BTreeMap<[u32; 4], CropFeatures>,
     us: f64,
 }
 
 impl FeatureCache<'_> {
-    /// Keypoints and descriptors of the crop `[x0, y0, x1, y1]` (inclusive) padded by `pad`,
-    /// in frame coordinates.
+    /// The scale space of the crop `[x0, y0, x1, y1]` (inclusive).
+    fn scale_space(&self, key: [u32; 4]) -> Result<quarry_vision::sift::ScaleSpace, TrackerError> {
+        let w = self.frame.width as usize;
+        let (x0, y0) = (key[0], key[1]);
+        let sub = Plane::from_fn(key[2] - x0 + 1, key[3] - y0 + 1, |x, y| {
+            f32::from(self.frame.data[(y0 + y) as usize * w + (x0 + x) as usize])
+        });
+        Ok(self.sift.scale_space(&sub)?)
+    }
+
+    /// Keypoints (frame coordinates) and descriptors of the crop `[x0, y0, x1, y1]`
+    /// (inclusive) padded by `pad`, restricted to the keypoints for which `keep(x, y)` holds.
     fn crop(
         &mut self,
         rect: [u32; 4],
-    ) -> Result<&(Vec<Keypoint>, Vec<SiftDescriptor>), TrackerError> {
+        keep: impl Fn(f32, f32) -> bool,
+    ) -> Result<(Vec<[f64; 2]>, Vec<SiftDescriptor>), TrackerError> {
+        let t = Instant::now();
         let (w, h) = self.frame.dimensions();
         let x0 = rect[0].saturating_sub(self.pad);
         let y0 = rect[1].saturating_sub(self.pad);
         let x1 = (rect[2] + self.pad).min(w - 1);
         let y1 = (rect[3] + self.pad).min(h - 1);
         let key = [x0, y0, x1, y1];
+        let mut fresh = None;
         if !self.crops.contains_key(&key) {
-            let t = Instant::now();
             let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-            let result = if cw < quarry_vision::sift::MIN_SIDE || ch < quarry_vision::sift::MIN_SIDE
+            let local = if cw < quarry_vision::sift::MIN_SIDE || ch < quarry_vision::sift::MIN_SIDE
             {
-                (Vec::new(), Vec::new())
+                Vec::new()
             } else {
-                let sub = Plane::from_fn(cw, ch, |x, y| {
-                    self.frame.data[(y0 + y) as usize * w as usize + (x0 + x) as usize]
-                });
-                let (mut kps, d) = self.sift.extract(&sub)?;
-                for k in &mut kps {
-                    k.x += x0 as f32;
-                    k.y += y0 as f32;
-                }
-                (kps, d)
+                let ss = self.scale_space(key)?;
+                let kps = self.sift.detect_in(&ss);
+                fresh = Some(ss);
+                kps
             };
-            self.us += t.elapsed().as_secs_f64() * 1e6;
-            self.crops.insert(key, result);
+            let desc = vec![None; local.len()];
+            self.crops.insert(
+                key,
+                CropFeatures {
+                    local,
+                    desc,
+                    origin: (x0, y0),
+                },
+            );
         }
-        Ok(&self.crops[&key])
+        let frame_xy =
+            |c: &CropFeatures, k: &Keypoint| (k.x + c.origin.0 as f32, k.y + c.origin.1 as f32);
+        let entry = &self.crops[&key];
+        let wanted: Vec<usize> = (0..entry.local.len())
+            .filter(|&i| {
+                let (x, y) = frame_xy(entry, &entry.local[i]);
+                entry.desc[i].is_none() && keep(x, y)
+            })
+            .collect();
+        if !wanted.is_empty() {
+            let ss = match fresh {
+                Some(ss) => ss,
+                None => self.scale_space(key)?,
+            };
+            let kps: Vec<Keypoint> = wanted.iter().map(|&i| entry.local[i]).collect();
+            let d = self.sift.describe_in(&ss, &kps)?;
+            let entry = self
+                .crops
+                .get_mut(&key)
+                .ok_or_else(|| TrackerError::State("internal: crop cache entry".into()))?;
+            for (&i, v) in wanted.iter().zip(&d) {
+                entry.desc[i] = Some(quarry_vision::sift::quantize(v));
+            }
+        }
+        let entry = &self.crops[&key];
+        let (mut pos, mut out) = (Vec::new(), Vec::new());
+        for (k, d) in entry.local.iter().zip(&entry.desc) {
+            let (x, y) = frame_xy(entry, k);
+            if let Some(d) = d
+                && keep(x, y)
+            {
+                pos.push([f64::from(x), f64::from(y)]);
+                out.push(*d);
+            }
+        }
+        self.us += t.elapsed().as_secs_f64() * 1e6;
+        Ok((pos, out))
     }
 }
 
@@ -224,6 +332,11 @@ pub struct WatershedSiftTracker {
     next_id: u32,
     frames: u64,
     diagnostics: FrameDiagnostics,
+    /// The running background (`fg_box`, `fg_gate` or `fg_births`).
+    background: Option<MedianBackground>,
+    /// Foreground birth candidates of the last frame: blob box `[x0, y0, x1, y1)` and the
+    /// number of consecutive frames it was seen.
+    birth_candidates: Vec<([f64; 4], usize)>,
 }
 
 /// `p` rounded half away from zero and clamped into a `w × h` image.
@@ -246,7 +359,6 @@ impl WatershedSiftTracker {
             ..SiftParams::default()
         })?;
         Ok(Self {
-            cfg,
             front,
             sift,
             targets: Vec::new(),
@@ -254,6 +366,13 @@ impl WatershedSiftTracker {
             next_id: 1,
             frames: 0,
             diagnostics: FrameDiagnostics::default(),
+            birth_candidates: Vec::new(),
+            background: if cfg.fg_box || cfg.fg_gate || cfg.fg_births {
+                Some(MedianBackground::new(cfg.background_params())?)
+            } else {
+                None
+            },
+            cfg,
         })
     }
 
@@ -325,24 +444,17 @@ impl WatershedSiftTracker {
         if r[0] > r[2] || r[1] > r[3] {
             return Ok((Vec::new(), Vec::new()));
         }
-        let (kps, desc) = cache.crop(r)?;
-        let mut pos = Vec::new();
-        let mut out = Vec::new();
-        for (k, d) in kps.iter().zip(desc) {
-            let (x, y) = pixel([f64::from(k.x), f64::from(k.y)], w, h);
+        let keep = |kx: f32, ky: f32| {
+            let (x, y) = pixel([f64::from(kx), f64::from(ky)], w, h);
             if let Some(c) = clip {
                 let (fx, fy) = (f64::from(x), f64::from(y));
                 if !(fx >= c[0] && fx < c[2] && fy >= c[1] && fy < c[3]) {
-                    continue;
+                    return false;
                 }
             }
-            let l = seg.labels.data[y as usize * w as usize + x as usize];
-            if labels.contains(&l) {
-                pos.push([f64::from(k.x), f64::from(k.y)]);
-                out.push(*d);
-            }
-        }
-        Ok((pos, out))
+            labels.contains(&seg.labels.data[y as usize * w as usize + x as usize])
+        };
+        cache.crop(r, keep)
     }
 
     fn roi_clip(&self, c: [f64; 2]) -> [f64; 4] {
@@ -360,6 +472,36 @@ impl WatershedSiftTracker {
         let t0 = Instant::now();
         self.front.step(frame)?;
         let t_seg = t0.elapsed().as_secs_f64() * 1e6;
+        let tb = Instant::now();
+        if let Some(bg) = &mut self.background {
+            // only targets seen moving: a target born on a ghost (foreground left where a
+            // person stood while the background warmed up) must not keep its ghost
+            let boxes: Vec<BBox> = self
+                .targets
+                .iter()
+                .filter(|t| t.moved)
+                .filter_map(|t| t.report)
+                .collect();
+            if self.cfg.bg_selective && bg.sample_due() && !boxes.is_empty() {
+                let mut hold = Plane::new(frame.width, frame.height, false);
+                let (w, h) = (frame.width as usize, frame.height as usize);
+                for b in boxes {
+                    let lo = |c: f64| c.ceil().max(0.0) as usize;
+                    let (x0, y0) = (lo(b.cx - b.w / 2.0), lo(b.cy - b.h / 2.0));
+                    let (x1, y1) = (
+                        ((b.cx + b.w / 2.0).ceil().max(0.0) as usize).min(w),
+                        ((b.cy + b.h / 2.0).ceil().max(0.0) as usize).min(h),
+                    );
+                    for y in y0.min(h)..y1 {
+                        hold.data[y * w + x0.min(x1)..y * w + x1].fill(true);
+                    }
+                }
+                bg.update_selective(frame, &hold)?;
+            } else {
+                bg.update(frame)?;
+            }
+        }
+        let t_bg = tb.elapsed().as_secs_f64() * 1e6;
         let t = stamp.frame.0;
         self.frames += 1;
         let (Some(seg), Some(prev), Some(map)) = (
@@ -376,6 +518,7 @@ impl WatershedSiftTracker {
                 regions: seg.n_regions(),
                 times: StageTimes {
                     segment_us: t_seg,
+                    foreground_us: t_bg,
                     ..StageTimes::default()
                 },
                 ..FrameDiagnostics::default()
@@ -422,6 +565,16 @@ impl WatershedSiftTracker {
         let lab = |p: (u32, u32)| seg.labels.data[p.1 as usize * w as usize + p.0 as usize];
         let minimum = |l: u32| seg.minima[l as usize - 1].representative;
         let n_t = self.targets.len();
+
+        // ----- [ext] regions with foreground (fg_skip_background) -----
+        let tfg = Instant::now();
+        let fg_regions = self.foreground_regions(&seg, frame);
+        let t_fgr = tfg.elapsed().as_secs_f64() * 1e6;
+        let background_region = |j: u32| {
+            fg_regions
+                .as_ref()
+                .is_some_and(|f| !f.get(j as usize).copied().unwrap_or(false))
+        };
 
         // ----- occlusion detection (§2.14) -----
         let mut groups: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
@@ -631,7 +784,7 @@ impl WatershedSiftTracker {
             // step 4: fragments, by the ownership test
             for r in s {
                 for &j in map.fragments(r.label) {
-                    if claims[k].iter().any(|c| c.label == j) {
+                    if claims[k].iter().any(|c| c.label == j) || background_region(j) {
                         continue;
                     }
                     let (_, d) = Self::features(&mut cache, &seg, &geo, &[j], None)?;
@@ -698,7 +851,7 @@ impl WatershedSiftTracker {
         let mut consumed: BTreeSet<u32> = BTreeSet::new();
         for mi in 0..moving.len() {
             let (j, _, disp) = moving[mi];
-            if consumed.contains(&j) || owned_by(&claims, j) {
+            if consumed.contains(&j) || owned_by(&claims, j) || background_region(j) {
                 continue;
             }
             let neigh: Vec<usize> = (0..claims.len())
@@ -781,20 +934,13 @@ impl WatershedSiftTracker {
             let id = TrackId(self.next_id);
             self.next_id += 1;
             created += 1;
-            self.targets.push(Target {
+            self.targets.push(Target::start(
                 id,
-                occluded: false,
-                regions: Vec::new(),
                 centre,
-                pool: WeightedPool::new(self.cfg.pool_params())?,
-                prev_desc: Vec::new(),
-                born: t,
-                history: VecDeque::new(),
-                lost: 0,
-                fresh: true,
-                placed: false,
-                fuse_streak: BTreeMap::new(),
-            });
+                Vec::new(),
+                WeightedPool::new(self.cfg.pool_params())?,
+                t,
+            ));
             occluded.push(false);
             located.push(None);
             claims.push(
@@ -916,6 +1062,14 @@ impl WatershedSiftTracker {
             self.fuse();
         }
 
+        // ----- reported boxes: fixed (paper) or fitted to the foreground \[ext\] -----
+        let tf = Instant::now();
+        self.report_boxes(&seg, frame);
+        if self.cfg.fg_births {
+            created += self.foreground_births(&seg, frame, t)?;
+        }
+        let t_fit = tf.elapsed().as_secs_f64() * 1e6;
+
         // ----- termination (§2.16) -----
         let (bw, bh) = (self.cfg.box_w / 2.0, self.cfg.box_h / 2.0);
         let (fw, fh) = (f64::from(w) - 1.0, f64::from(h) - 1.0);
@@ -923,6 +1077,10 @@ impl WatershedSiftTracker {
         let cfg = &self.cfg;
         self.targets.retain_mut(|tg| {
             tg.history.push_back(tg.centre);
+            let origin = tg.origin.get_or_insert(tg.centre);
+            if (tg.centre[0] - origin[0]).hypot(tg.centre[1] - origin[1]) >= cfg.box_w / 2.0 {
+                tg.moved = true;
+            }
             let keep = cfg.exit_frames.max(cfg.stuck_frames) + 1;
             while tg.history.len() > keep {
                 tg.history.pop_front();
@@ -937,8 +1095,11 @@ impl WatershedSiftTracker {
             let c = tg.centre;
             let in_band = c[0] < bw || c[0] > fw - bw || c[1] < bh || c[1] > fh - bh;
             let exit = in_band && d_k(cfg.exit_frames).is_some_and(|d| d < cfg.still_px);
-            let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px);
-            let lost = tg.lost > cfg.lost_frames;
+            // with the foreground gate, a target on foreground is a person standing, not
+            // regions frozen on background: the gate ends the latter (`stuck_needs_no_fg`)
+            let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px)
+                && !(cfg.stuck_needs_no_fg && tg.moved && tg.no_fg == 0 && tg.report.is_some());
+            let lost = tg.lost > cfg.lost_frames || tg.no_fg > cfg.lost_frames;
             !(exit || stuck || lost)
         });
         let terminated = before - self.targets.len();
@@ -950,11 +1111,12 @@ impl WatershedSiftTracker {
                 (m.len() >= 2).then_some((l, m))
             })
             .collect();
-        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us;
+        let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us - t_fit - t_fgr;
 
         // ----- reports -----
         let mut reports = Vec::new();
         for tg in &self.targets {
+            let Some(bbox) = tg.report else { continue };
             if tg.regions.is_empty() || t < tg.born + self.cfg.report_after as u64 {
                 continue;
             }
@@ -967,7 +1129,7 @@ impl WatershedSiftTracker {
                     TrackStatus::Confirmed
                 },
             );
-            r.bbox = Some(self.bbox(tg.centre));
+            r.bbox = Some(bbox);
             r.score = Some(1.0);
             if tg.born == t {
                 r.flags = TrackFlags::BORN;
@@ -1004,6 +1166,7 @@ impl WatershedSiftTracker {
                 map_us: t_map,
                 sift_us,
                 track_us: t_track.max(0.0),
+                foreground_us: t_bg + t_fgr + t_fit,
             },
         };
         Ok(reports)
@@ -1011,6 +1174,372 @@ impl WatershedSiftTracker {
 }
 
 impl WatershedSiftTracker {
+    /// Sets every target's reported box for this frame: the fixed box around O_c (paper), or
+    /// with `fg_box` the box fitted to its foreground pixels (see the config docs); a target
+    /// without a fit this frame keeps its last fit's offset and size. With `fg_gate` a visible
+    /// target without foreground support is not reported and counts towards termination.
+    fn report_boxes(&mut self, seg: &Segmentation, frame: &Plane<u8>) {
+        let mature = self
+            .background
+            .as_ref()
+            .filter(|b| b.samples_held() >= 3.min(b.params().samples));
+        let fixed = |c: [f64; 2]| BBox {
+            cx: c[0],
+            cy: c[1],
+            w: self.cfg.box_w,
+            h: self.cfg.box_h,
+        };
+        let Some(bg) = mature else {
+            for tg in &mut self.targets {
+                tg.report = (!tg.regions.is_empty()).then(|| fixed(tg.centre));
+            }
+            return;
+        };
+        // owners of each label: visible targets, and the members of an occlusion group
+        let mut owners: Vec<Vec<usize>> = vec![Vec::new(); seg.n_regions() + 1];
+        for (k, tg) in self.targets.iter().enumerate() {
+            for r in &tg.regions {
+                if let Some(o) = owners.get_mut(r.label as usize) {
+                    o.push(k);
+                }
+            }
+        }
+        let cfg = &self.cfg;
+        let (w, h) = (seg.labels.width as usize, seg.labels.height as usize);
+        let back = &bg.background().data;
+        let thr = cfg.fg_threshold;
+        let mut fits: Vec<Option<[f64; 4]>> = vec![None; self.targets.len()];
+        for (k, tg) in self.targets.iter().enumerate() {
+            if tg.regions.is_empty() || tg.occluded {
+                continue;
+            }
+            let (hw, hh) = (cfg.fg_window * cfg.box_w, cfg.fg_window * cfg.box_h);
+            let clampi = |v: f64, n: usize| v.clamp(0.0, n as f64 - 1.0) as usize;
+            let (x0, x1) = (
+                clampi((tg.centre[0] - hw).ceil(), w),
+                clampi((tg.centre[0] + hw).floor(), w),
+            );
+            let (y0, y1) = (
+                clampi((tg.centre[1] - hh).ceil(), h),
+                clampi((tg.centre[1] + hh).floor(), h),
+            );
+            let mut cols = vec![0usize; x1 - x0 + 1];
+            let mut rows = vec![0usize; y1 - y0 + 1];
+            let (mut n, mut n_own) = (0usize, 0usize);
+            for y in y0..=y1 {
+                let row = y * w;
+                for x in x0..=x1 {
+                    let i = row + x;
+                    if frame.data[i].abs_diff(back[i]) <= thr {
+                        continue;
+                    }
+                    let o = &owners[seg.labels.data[i] as usize];
+                    let own = o.contains(&k);
+                    if o.is_empty() || own {
+                        cols[x - x0] += 1;
+                        rows[y - y0] += 1;
+                        n += 1;
+                        n_own += usize::from(own);
+                    }
+                }
+            }
+            // support: the foreground must lie in the target's own regions (a target frozen
+            // on a lamp post gets the foreground of people passing it only from other regions)
+            if (n_own as f64) < cfg.fg_min_frac * cfg.box_w * cfg.box_h || n_own == 0 {
+                continue;
+            }
+            let span = |hist: &[usize], lo0: usize| -> (f64, f64) {
+                let (lo_n, hi_n) = (cfg.fg_trim * n as f64, (1.0 - cfg.fg_trim) * n as f64);
+                let (mut acc, mut lo, mut hi) = (0usize, 0usize, hist.len() - 1);
+                let mut lo_set = false;
+                for (i, &c) in hist.iter().enumerate() {
+                    acc += c;
+                    if !lo_set && acc as f64 > lo_n {
+                        lo = i;
+                        lo_set = true;
+                    }
+                    if acc as f64 >= hi_n {
+                        hi = i;
+                        break;
+                    }
+                }
+                ((lo0 + lo) as f64, (lo0 + hi) as f64 + 1.0)
+            };
+            let fit_axis = |(a, b): (f64, f64), size: f64, c: f64, cap: f64| -> (f64, f64) {
+                let s = cfg.fg_max_scale;
+                let len = (b - a).clamp(size / s, size * s).min(cap.max(size / s));
+                // centre as close to O_c as the blob allows
+                let lo = a + len / 2.0;
+                let hi = b - len / 2.0;
+                let cc = if lo <= hi {
+                    c.clamp(lo, hi)
+                } else {
+                    f64::midpoint(a, b)
+                };
+                (cc, len)
+            };
+            let (cy, fh) = fit_axis(span(&rows, y0), cfg.box_h, tg.centre[1], f64::INFINITY);
+            let wcap = cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh;
+            let (cx, fw) = fit_axis(span(&cols, x0), cfg.box_w, tg.centre[0], wcap);
+            fits[k] = Some([cx - tg.centre[0], cy - tg.centre[1], fw, fh]);
+        }
+        let (fg_box, fg_gate) = (cfg.fg_box, cfg.fg_gate);
+        for (tg, fit) in self.targets.iter_mut().zip(fits) {
+            if tg.regions.is_empty() {
+                tg.report = None;
+                continue;
+            }
+            let visible = !tg.occluded;
+            if visible && fit.is_none() {
+                tg.no_fg += 1;
+            } else {
+                tg.no_fg = 0;
+            }
+            if fit.is_some() {
+                tg.fit = fit;
+            }
+            tg.report = if fg_gate && visible && fit.is_none() {
+                None
+            } else if let (true, Some(f)) = (fg_box, tg.fit) {
+                Some(BBox {
+                    cx: tg.centre[0] + f[0],
+                    cy: tg.centre[1] + f[1],
+                    w: f[2],
+                    h: f[3],
+                })
+            } else {
+                Some(fixed(tg.centre))
+            };
+        }
+    }
+
+    /// With `fg_skip_background` and a background of at least 3 samples: per label (index =
+    /// label), whether the region holds at least `fg_min_frac`/4 · w·h foreground pixels.
+    fn foreground_regions(&self, seg: &Segmentation, frame: &Plane<u8>) -> Option<Vec<bool>> {
+        let bg = self.background.as_ref().filter(|b| {
+            self.cfg.fg_skip_background && b.samples_held() >= 3.min(b.params().samples)
+        })?;
+        let mut count = vec![0u32; seg.n_regions() + 1];
+        let thr = self.cfg.fg_threshold;
+        for ((&v, &b), &l) in frame
+            .data
+            .iter()
+            .zip(&bg.background().data)
+            .zip(&seg.labels.data)
+        {
+            if v.abs_diff(b) > thr
+                && let Some(c) = count.get_mut(l as usize)
+            {
+                *c += 1;
+            }
+        }
+        let min = self.cfg.fg_min_frac / 4.0 * self.cfg.box_w * self.cfg.box_h;
+        Some(count.iter().map(|&c| f64::from(c) >= min).collect())
+    }
+
+    /// Foreground births (`fg_births`, see the config docs): blobs of foreground that no live
+    /// target's box covers, confirmed over `birth_frames` frames, start targets on the unowned
+    /// regions whose minima lie in the blob. Returns the number of targets created.
+    fn foreground_births(
+        &mut self,
+        seg: &Segmentation,
+        frame: &Plane<u8>,
+        t: u64,
+    ) -> Result<usize, TrackerError> {
+        const CELL: usize = 4;
+        let Some(bg) = self
+            .background
+            .as_ref()
+            .filter(|b| b.samples_held() >= 3.min(b.params().samples))
+        else {
+            self.birth_candidates.clear();
+            return Ok(0);
+        };
+        let cfg = &self.cfg;
+        let (w, h) = (seg.labels.width as usize, seg.labels.height as usize);
+        let (gw, gh) = (w.div_ceil(CELL), h.div_ceil(CELL));
+        let back = &bg.background().data;
+        // cells with at least a quarter of their pixels in the foreground
+        let mut count = vec![0u16; gw * gh];
+        for y in 0..h {
+            let crow = (y / CELL) * gw;
+            for x in 0..w {
+                let i = y * w + x;
+                if frame.data[i].abs_diff(back[i]) > cfg.fg_threshold {
+                    count[crow + x / CELL] += 1;
+                }
+            }
+        }
+        let mut cell: Vec<bool> = (0..gw * gh)
+            .map(|c| {
+                let (cx, cy) = (c % gw, c / gw);
+                let cw = CELL.min(w - cx * CELL);
+                let ch = CELL.min(h - cy * CELL);
+                usize::from(count[c]) * 4 >= cw * ch
+            })
+            .collect();
+        // cells whose centre lies in a live target's box are covered
+        for tg in &self.targets {
+            let b = tg.report.unwrap_or(BBox {
+                cx: tg.centre[0],
+                cy: tg.centre[1],
+                w: cfg.box_w,
+                h: cfg.box_h,
+            });
+            let (l, tp) = (b.cx - b.w / 2.0, b.cy - b.h / 2.0);
+            let c0 = ((l / CELL as f64 - 0.5).ceil().max(0.0)) as usize;
+            let r0 = ((tp / CELL as f64 - 0.5).ceil().max(0.0)) as usize;
+            let c1 = ((l + b.w) / CELL as f64 - 0.5).floor();
+            let r1 = ((tp + b.h) / CELL as f64 - 0.5).floor();
+            if c1 < 0.0 || r1 < 0.0 {
+                continue;
+            }
+            let (c1, r1) = ((c1 as usize).min(gw - 1), (r1 as usize).min(gh - 1));
+            for r in r0..=r1 {
+                for c in c0..=c1 {
+                    cell[r * gw + c] = false;
+                }
+            }
+        }
+        // 8-connected blobs of the remaining cells
+        let mut seen = vec![false; gw * gh];
+        let mut blobs: Vec<[f64; 4]> = Vec::new();
+        let mut stack = Vec::new();
+        let min_area = cfg.birth_min_frac * cfg.box_w * cfg.box_h;
+        for start in 0..gw * gh {
+            if !cell[start] || seen[start] {
+                continue;
+            }
+            seen[start] = true;
+            stack.push(start);
+            let (mut n, mut bb) = (0usize, [usize::MAX, usize::MAX, 0, 0]);
+            while let Some(c) = stack.pop() {
+                let (cx, cy) = (c % gw, c / gw);
+                n += 1;
+                bb = [bb[0].min(cx), bb[1].min(cy), bb[2].max(cx), bb[3].max(cy)];
+                for &(dx, dy) in quarry_vision::Connectivity::Eight.offsets() {
+                    let (nx, ny) = (cx as i64 + i64::from(dx), cy as i64 + i64::from(dy));
+                    if nx < 0 || ny < 0 || nx >= gw as i64 || ny >= gh as i64 {
+                        continue;
+                    }
+                    let q = ny as usize * gw + nx as usize;
+                    if cell[q] && !seen[q] {
+                        seen[q] = true;
+                        stack.push(q);
+                    }
+                }
+            }
+            let area = (n * CELL * CELL) as f64;
+            let px = [
+                (bb[0] * CELL) as f64,
+                (bb[1] * CELL) as f64,
+                ((bb[2] + 1) * CELL).min(w) as f64,
+                ((bb[3] + 1) * CELL).min(h) as f64,
+            ];
+            if area >= min_area && px[3] - px[1] >= 0.5 * cfg.box_h {
+                blobs.push(px);
+            }
+        }
+        let iou = |a: &[f64; 4], b: &[f64; 4]| {
+            let ix = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+            let iy = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+            let i = ix * iy;
+            let u = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - i;
+            if u > 0.0 { i / u } else { 0.0 }
+        };
+        let prev = std::mem::take(&mut self.birth_candidates);
+        let mut next = Vec::new();
+        let mut created = 0;
+        let mut owned = vec![false; seg.n_regions() + 1];
+        for tg in &self.targets {
+            for r in &tg.regions {
+                if let Some(o) = owned.get_mut(r.label as usize) {
+                    *o = true;
+                }
+            }
+        }
+        for b in blobs {
+            let streak = prev
+                .iter()
+                .filter(|(p, _)| iou(p, &b) >= 0.3)
+                .map(|(_, s)| *s)
+                .max()
+                .unwrap_or(0)
+                + 1;
+            if streak < self.cfg.birth_frames {
+                next.push((b, streak));
+                continue;
+            }
+            let mut labels: Vec<u32> = seg
+                .minima
+                .iter()
+                .enumerate()
+                .filter(|(l, m)| {
+                    let (x, y) = (f64::from(m.representative.0), f64::from(m.representative.1));
+                    !owned[l + 1] && x >= b[0] && x < b[2] && y >= b[1] && y < b[3]
+                })
+                .map(|(l, _)| l as u32 + 1)
+                .collect();
+            if labels.is_empty() {
+                let (x, y) = (
+                    f64::midpoint(b[0], b[2]) as usize,
+                    f64::midpoint(b[1], b[3]) as usize,
+                );
+                let l = seg.labels.data[y.min(h - 1) * w + x.min(w - 1)];
+                if !owned[l as usize] {
+                    labels.push(l);
+                }
+            }
+            if labels.is_empty() {
+                next.push((b, streak));
+                continue;
+            }
+            let regions: Vec<RegionRef> = labels
+                .iter()
+                .map(|&l| RegionRef {
+                    label: l,
+                    minimum: seg.minima[l as usize - 1].representative,
+                    provenance: Provenance::MovingPoint,
+                })
+                .collect();
+            let n = regions.len() as f64;
+            let centre = [
+                regions.iter().map(|r| f64::from(r.minimum.0)).sum::<f64>() / n,
+                regions.iter().map(|r| f64::from(r.minimum.1)).sum::<f64>() / n,
+            ];
+            let cfg = &self.cfg;
+            let s = cfg.fg_max_scale;
+            let fh = (b[3] - b[1]).clamp(cfg.box_h / s, cfg.box_h * s);
+            let wcap = (cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh).max(cfg.box_w / s);
+            let fw = (b[2] - b[0]).clamp(cfg.box_w / s, cfg.box_w * s).min(wcap);
+            let bc = [f64::midpoint(b[0], b[2]), f64::midpoint(b[1], b[3])];
+            let fit = [bc[0] - centre[0], bc[1] - centre[1], fw, fh];
+            for &l in &labels {
+                owned[l as usize] = true;
+            }
+            let id = TrackId(self.next_id);
+            self.next_id += 1;
+            created += 1;
+            let mut target = Target::start(
+                id,
+                centre,
+                regions,
+                WeightedPool::new(self.cfg.pool_params())?,
+                t,
+            );
+            target.fit = Some(fit);
+            target.report = Some(BBox {
+                cx: bc[0],
+                cy: bc[1],
+                w: fw,
+                h: fh,
+            });
+            self.targets.push(target);
+        }
+        self.birth_candidates = next;
+        Ok(created)
+    }
+
     /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
     /// consecutive frames: the younger (larger id) joins the older.
     fn fuse(&mut self) {
