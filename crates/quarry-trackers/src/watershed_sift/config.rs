@@ -200,10 +200,10 @@ pub struct WatershedSiftConfig {
     /// target on a person standing still keeps foreground and would otherwise be ended after
     /// `stuck_frames` frames (and started again with a new id).
     pub stuck_needs_no_fg: bool,
-    /// Background model: samples in the ring (odd) [ours, `robust`: 9 — with `bg_every` = 4
+    /// Background model: samples in the ring (odd) \[ours, `robust`: 9 — with `bg_every` = 4
     /// the ring spans 36 frames, so a person crossing a pixel in under ~18 frames (w/v < 18,
     /// i.e. faster than ≈ 1.8 px/frame for w = 32, the order of the moving-point test's own
-    /// ≈ 1 px/frame detection limit, spec §2.8) never enters the background].
+    /// ≈ 1 px/frame detection limit, spec §2.8) never enters the background\].
     pub bg_samples: usize,
     /// Background model: one sample every this many frames [ours, `robust`: 4, see
     /// `bg_samples`].
