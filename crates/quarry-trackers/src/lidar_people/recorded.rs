@@ -137,7 +137,9 @@ pub fn run_recorded(
                 run.skipped_repeated += 1;
                 continue;
             }
-            let dt = (scan.t.0 - t.0) as f64;
+            // scan.t > t here; the difference of two i64 stamps can exceed i64 (absurd stamps
+            // from a malformed file), the absolute difference cannot exceed u64
+            let dt = scan.t.0.abs_diff(t.0) as f64;
             run.longest_gap_s = run.longest_gap_s.max(dt * 1e-6);
             if dt > gap_us {
                 run.gaps += 1;
@@ -236,5 +238,24 @@ mod tests {
             ..Pose2::default()
         };
         assert!(run_recorded(&cfg, &g, nan, &scans, 3.0).is_err());
+    }
+
+    /// Stamps at the ends of i64 (a malformed recording) are a clear error or a counted gap,
+    /// never an overflow panic.
+    #[test]
+    fn extreme_stamps_do_not_overflow() {
+        let g = geom();
+        let mk =
+            |t: i64| PolarScan::try_new(SensorId(0), 0, TimeUs(t), vec![5000; 181], g).unwrap();
+        let mut scans: Vec<PolarScan> = (0..25).map(|k| mk(i64::MIN + 1 + k * 100_000)).collect();
+        scans.push(mk(i64::MAX));
+        let cfg = LidarPeopleConfig::default();
+        match run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0) {
+            Ok(run) => {
+                assert_eq!(run.gaps, 1);
+                assert!(run.longest_gap_s > 1e12);
+            }
+            Err(e) => assert!(!e.to_string().is_empty()),
+        }
     }
 }
