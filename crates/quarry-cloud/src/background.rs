@@ -341,6 +341,11 @@ pub struct ScanDiagnostics {
     pub overridden: usize,
 }
 
+/// The most ranges a [`ChiSquareBackground`] stores (window and warm-up rings over all beams):
+/// 2²⁶ 16-bit ranges, 128 MiB. A real scanner with a 40-scan window needs a few hundred thousand;
+/// a malformed geometry asking for billions is an error instead of an allocation failure.
+pub const MAX_MODEL_CELLS: usize = 1 << 26;
+
 /// The chi-square background model; implements [`BackgroundModel`].
 #[derive(Debug, Clone)]
 pub struct ChiSquareBackground {
@@ -365,9 +370,28 @@ impl ChiSquareBackground {
     /// A model for scans of `geometry`.
     pub fn new(geometry: &ScanGeometry, cfg: ChiSquareConfig) -> Result<Self> {
         cfg.validate()?;
+        // checked before the beam table, which itself holds two numbers per beam
+        let n = geometry.n_beams as usize;
+        let warm_scans = cfg.long_term.map_or(0, |lt| lt.warm_scans);
+        let cells = cfg
+            .window
+            .checked_add(warm_scans)
+            .and_then(|per_beam| per_beam.checked_mul(n))
+            .filter(|c| *c <= MAX_MODEL_CELLS)
+            .ok_or_else(|| {
+                CoreError::invalid(
+                    "geometry",
+                    format!(
+                        "{n} beams x (window {} + warm-up {warm_scans} scans) ranges exceed the \
+                         model's limit of {MAX_MODEL_CELLS} stored ranges",
+                        cfg.window
+                    ),
+                )
+            })?;
+        debug_assert!(cells <= MAX_MODEL_CELLS);
         let table = BeamTable::new(geometry)?;
-        let n = table.len();
-        let warm_len = cfg.long_term.map_or(0, |lt| lt.warm_scans) * n;
+        debug_assert_eq!(table.len(), n);
+        let warm_len = warm_scans * n;
         Ok(Self {
             cfg,
             table,
@@ -707,6 +731,21 @@ mod tests {
     use quarry_core::SensorId;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn an_absurd_beam_count_is_an_error_not_an_allocation() {
+        let g = ScanGeometry {
+            n_beams: 1 << 31,
+            ..one_beam_geometry()
+        };
+        let e = ChiSquareBackground::new(&g, ChiSquareConfig::default()).unwrap_err();
+        assert!(e.to_string().contains("beams"), "{e}");
+        let ok = ScanGeometry {
+            n_beams: 1081,
+            ..one_beam_geometry()
+        };
+        ChiSquareBackground::new(&ok, ChiSquareConfig::default()).unwrap();
+    }
 
     fn one_beam_geometry() -> ScanGeometry {
         ScanGeometry {
