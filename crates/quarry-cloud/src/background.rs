@@ -373,8 +373,7 @@ impl ChiSquareBackground {
         // checked before the beam table, which itself holds two numbers per beam
         let n = geometry.n_beams as usize;
         let warm_scans = cfg.long_term.map_or(0, |lt| lt.warm_scans);
-        let cells = cfg
-            .window
+        cfg.window
             .checked_add(warm_scans)
             .and_then(|per_beam| per_beam.checked_mul(n))
             .filter(|c| *c <= MAX_MODEL_CELLS)
@@ -388,9 +387,7 @@ impl ChiSquareBackground {
                     ),
                 )
             })?;
-        debug_assert!(cells <= MAX_MODEL_CELLS);
         let table = BeamTable::new(geometry)?;
-        debug_assert_eq!(table.len(), n);
         let warm_len = warm_scans * n;
         Ok(Self {
             cfg,
