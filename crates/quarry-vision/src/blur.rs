@@ -351,7 +351,7 @@ const BLOCK: usize = 32;
 // Inlined into the AVX2 build of `multiversion!` so that the loop is compiled for AVX2 there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn blur_row_body<T: BlurSample>(pad: &[T], out: &mut [T], k: &[T]) {
+pub(crate) fn blur_row_body<T: BlurSample>(pad: &[T], out: &mut [T], k: &[T]) {
     let r = k.len() - 1;
     let w = out.len();
     let k0 = k[0];

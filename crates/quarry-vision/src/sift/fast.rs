@@ -4,7 +4,8 @@
 //! but laid out for speed:
 //!
 //! - the padded row is built with one copy of the interior and border look-ups only for the `r`
-//!   pixels at each end (instead of a border look-up per pixel);
+//!   pixels at each end (instead of a border look-up per pixel), and the row kernel of
+//!   [`crate::blur`] runs over all of it, edges included;
 //! - both passes are register-blocked: a block of [`LANES`] outputs is accumulated over all taps
 //!   in registers (`acc = k0·c; acc += k_j·(a + b)` for j = 1..=r, in that order, exactly the
 //!   reference's per-pixel order), so the output is written once instead of once per tap;
@@ -25,8 +26,8 @@
 //! thread, 45 runs each, load ≈ 8 on 2 cores): scale space median 44.9–47.1 ms against
 //! 41.9–42.2 ms here, about 4 % of detect + describe, which is the margin by which SIFT meets
 //! its single-thread goal against OpenCV (`docs/PERFORMANCE.md`). The gains here are the
-//! column strips of the vertical pass (its `2r + 1` rows stay in L1), the interior read in
-//! place, one scratch for the whole pyramid and no rayon hand-off for small octaves. The two
+//! column strips of the vertical pass (its `2r + 1` rows stay in L1), the rows padded
+//! once, one scratch for the whole pyramid and no rayon hand-off for small octaves. The two
 //! share the instruction-set dispatch (`crate::simd`); moving this layout into `blur.rs` for
 //! all callers would leave one kernel instead of two.
 
@@ -121,62 +122,23 @@ multiversion!(avx512, avx2: fn dispatch_v => v_body(
 ));
 
 /// Horizontal pass over whole rows of `src` into `dst` (same length, a multiple of `w`).
-/// Interior pixels (whose taps all fall inside the row) read the row directly; the at most
-/// `r` pixels at each end read a small padded copy of the row's end.
+/// Each row is copied once into `pad` with its reflect-101 border (`r` values at each end) and
+/// blurred by [`crate::blur`]'s row kernel (register blocks of 32 outputs, the remainder
+/// taps-outer), so every output, the `r` at each end included, comes from a vectorised loop.
+/// The former in-place interior loop with scalar edges was not vectorised by LLVM at all
+/// (scalar `vmulss`/`vaddss` in `perf annotate`) and was 44 % of a crop's SIFT time.
 // Inlined into the builds of `multiversion!` so that the loops are compiled for each ISA there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn h_body(src: &[f32], dst: &mut [f32], w: usize, k: &[f32], pad: &mut Vec<f32>) {
     let r = k.len() - 1;
-    let k0 = k[0];
-    // Output ranges: [0, a) left edge, [a, c) interior, [c, w) right edge.
-    let a = r.min(w);
-    let c = w.saturating_sub(r).max(a);
     for (s, d) in src.chunks_exact(w).zip(dst.chunks_exact_mut(w)) {
-        // Interior: out[x] uses s[x − r ..= x + r].
-        let mut x = a;
-        while x + LANES <= c {
-            let mut acc = [0f32; LANES];
-            for (o, &v) in acc.iter_mut().zip(&s[x..x + LANES]) {
-                *o = k0 * v;
-            }
-            for (j, &kj) in k.iter().enumerate().skip(1) {
-                let left = &s[x - j..x - j + LANES];
-                let right = &s[x + j..x + j + LANES];
-                for ((o, &u), &v) in acc.iter_mut().zip(left).zip(right) {
-                    *o += kj * (u + v);
-                }
-            }
-            d[x..x + LANES].copy_from_slice(&acc);
-            x += LANES;
-        }
-        for (xx, o) in d[..c].iter_mut().enumerate().skip(x) {
-            let mut acc = k0 * s[xx];
-            for (j, &kj) in k.iter().enumerate().skip(1) {
-                acc += kj * (s[xx - j] + s[xx + j]);
-            }
-            *o = acc;
-        }
-        // Edges through a padded copy: pad[q] = s[border(lo + q)].
-        for (lo_x, hi_x) in [(0, a), (c, w)] {
-            if lo_x == hi_x {
-                continue;
-            }
-            let lo = lo_x as isize - r as isize;
-            pad.clear();
-            pad.extend(
-                (0..hi_x - lo_x + 2 * r)
-                    .map(|q| s[Border::Reflect101.interpolate(lo + q as isize, w)]),
-            );
-            for (q, o) in d[lo_x..hi_x].iter_mut().enumerate() {
-                let centre = q + r;
-                let mut acc = k0 * pad[centre];
-                for (j, &kj) in k.iter().enumerate().skip(1) {
-                    acc += kj * (pad[centre - j] + pad[centre + j]);
-                }
-                *o = acc;
-            }
-        }
+        // pad[q] = s[border(q − r)], q < w + 2r.
+        pad.clear();
+        pad.extend((0..r).map(|q| s[Border::Reflect101.interpolate(q as isize - r as isize, w)]));
+        pad.extend_from_slice(s);
+        pad.extend((w..w + r).map(|x| s[Border::Reflect101.interpolate(x as isize, w)]));
+        crate::blur::blur_row_body(pad, d, k);
     }
 }
 
@@ -212,19 +174,13 @@ fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]
             let pairs = &pairs[i * r..(i + 1) * r];
             let mut x = x0;
             while x + LANES <= x1 {
-                let mut acc = [0f32; LANES];
-                for (a, &v) in acc.iter_mut().zip(&centre[x..x + LANES]) {
-                    *a = k0 * v;
-                }
-                for (&kj, &(up, down)) in k[1..].iter().zip(pairs) {
-                    let up = &up[x..x + LANES];
-                    let down = &down[x..x + LANES];
-                    for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
-                        *a += kj * (u + v);
-                    }
-                }
-                d[x..x + LANES].copy_from_slice(&acc);
+                v_block::<LANES>(&mut d[x..x + LANES], x, k0, centre, &k[1..], pairs);
                 x += LANES;
+            }
+            // The strip's last columns: blocks of 8, then single columns.
+            while x + 8 <= x1 {
+                v_block::<8>(&mut d[x..x + 8], x, k0, centre, &k[1..], pairs);
+                x += 8;
             }
             for xx in x..x1 {
                 let mut a = k0 * centre[xx];
@@ -236,6 +192,32 @@ fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]
         }
         x0 = x1;
     }
+}
+
+/// `N` outputs of the vertical pass from column `x`: `k0·centre + Σ_j k_j·(up_j + down_j)`, in
+/// the reference's order.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn v_block<const N: usize>(
+    d: &mut [f32],
+    x: usize,
+    k0: f32,
+    centre: &[f32],
+    k: &[f32],
+    pairs: &[(&[f32], &[f32])],
+) {
+    let mut acc = [0f32; N];
+    for (a, &v) in acc.iter_mut().zip(&centre[x..x + N]) {
+        *a = k0 * v;
+    }
+    for (&kj, &(up, down)) in k.iter().zip(pairs) {
+        let up = &up[x..x + N];
+        let down = &down[x..x + N];
+        for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
+            *a += kj * (u + v);
+        }
+    }
+    d.copy_from_slice(&acc);
 }
 
 #[cfg(test)]
@@ -254,7 +236,9 @@ mod tests {
             (31, 7),
             (32, 5),
             (33, 40),
+            (47, 3),
             (97, 65),
+            (161, 30),
             (200, 150),
         ] {
             let img = Plane::from_fn(w as u32, h as u32, |_, _| {
