@@ -29,11 +29,11 @@
 //!   replayed per plateau component from its entry pixels sorted by rank.
 //!
 //! One row-wise pass (vectorised; AVX2 and AVX-512F builds are dispatched at run time by
-//! `crate::simd`) codes each pixel with the direction of its lowest neighbour or a
-//! tie/plateau/pit marker; the few tie and plateau pixels are resolved in value order; one sweep then copies labels down
-//! the labeller chains. [`RampBlurWatershed`](crate::RampBlurWatershed) and [`watershed`] also
-//! take the seeds from that pass: when no pixel is a plateau pixel, the regional minima are
-//! exactly the pixels below all their neighbours, so the minima need no pass of their own.
+//! `crate::simd`) codes each pixel with the direction of its lowest neighbour or a tie/plateau/pit
+//! marker; the few tie and plateau pixels are resolved in value order; one sweep then copies labels
+//! down the labeller chains. [`RampBlurWatershed`](crate::RampBlurWatershed) and [`watershed`] also
+//! take the seeds from that pass: when no pixel is a plateau pixel, the regional minima are exactly
+//! the pixels below all their neighbours, so the minima need no pass of their own.
 //!
 //! **Presorted flood** (the fallback: seeds that leave a regional minimum unseeded, a `-0.0`
 //! value, where `==` and `total_cmp` disagree, or a pathological relief that exhausts the
