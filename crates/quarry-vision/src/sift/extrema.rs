@@ -108,12 +108,25 @@ fn scan_row_all_layers_body(
             let m = (end - col).min(B);
             let mut hit = [false; B];
             if m == B {
-                for (k, h) in hit.iter_mut().enumerate() {
-                    let i = col + k;
-                    let v = cur[i];
-                    let hi = fmax(fmax(a[i], b[i]), c[i]);
-                    let lo = fmin(fmin(d[i], e[i]), f[i]);
-                    *h = ((v > thr) & (v >= hi)) | ((v < -thr) & (v <= lo));
+                // Fixed-size blocks: no bounds check inside the loop, so it vectorises.
+                let blk = |x: &[f32]| -> [f32; B] {
+                    let mut o = [0f32; B];
+                    o.copy_from_slice(&x[col..col + B]);
+                    o
+                };
+                let (v, a, b, c, d, e, f) =
+                    (blk(cur), blk(a), blk(b), blk(c), blk(d), blk(e), blk(f));
+                let mut any = false;
+                for k in 0..B {
+                    let hi = fmax(fmax(a[k], b[k]), c[k]);
+                    let lo = fmin(fmin(d[k], e[k]), f[k]);
+                    let h = ((v[k] > thr) & (v[k] >= hi)) | ((v[k] < -thr) & (v[k] <= lo));
+                    hit[k] = h;
+                    any |= h;
+                }
+                if !any {
+                    col += m;
+                    continue;
                 }
             } else {
                 for (k, h) in hit.iter_mut().enumerate().take(m) {
