@@ -138,15 +138,17 @@ pub enum Silhouette {
     /// The spec's person: body ellipse (u/13)² + ((v−8)/30)² ≤ 1 ∪ head disc u² + (v+31)² ≤ 7².
     Person,
     /// Two ellipses of semi-axes `rx` × `ry`, one above the other, whose centres sit at
-    /// v = ∓(0.9·`ry` + s(t)/2): they overlap by 0.2·`ry` at rest, and the extra separation
-    /// s(t) rises linearly from 0 at `split_from` to `max_gap` half-way through `split_frames`
-    /// and falls back to 0 at `split_from + split_frames` (spec §7.1 T3, the paper's "regions
-    /// split and merge again").
+    /// v = ∓(`rest` + s(t))/2: `rest` apart at rest (overlapping when `rest` < 2·`ry`), and
+    /// the extra separation s(t) rises linearly from 0 at `split_from` to `max_gap` half-way
+    /// through `split_frames` and falls back to 0 at `split_from + split_frames` (spec §7.1 T3,
+    /// the paper's "regions split and merge again").
     TwoLobes {
         /// Horizontal semi-axis of each lobe, pixels.
         rx: f64,
         /// Vertical semi-axis of each lobe, pixels.
         ry: f64,
+        /// Distance between the lobes' centres at rest, pixels.
+        rest: f64,
         /// First frame of the split.
         split_from: u64,
         /// Length of the split and rejoin, frames.
@@ -181,8 +183,8 @@ impl Silhouette {
     fn extent(&self, t: u64) -> (f64, f64, f64) {
         match *self {
             Self::Person => (13.0, 38.0, 38.0),
-            Self::TwoLobes { rx, ry, .. } => {
-                let h = 0.9 * ry + self.gap(t) / 2.0 + ry;
+            Self::TwoLobes { rx, ry, rest, .. } => {
+                let h = f64::midpoint(rest, self.gap(t)) + ry;
                 (rx, h, h)
             }
         }
@@ -195,8 +197,8 @@ impl Silhouette {
                 (u / 13.0).powi(2) + ((v - 8.0) / 30.0).powi(2) <= 1.0
                     || u * u + (v + 31.0) * (v + 31.0) <= 49.0
             }
-            Self::TwoLobes { rx, ry, .. } => {
-                let d = 0.9 * ry + gap / 2.0;
+            Self::TwoLobes { rx, ry, rest, .. } => {
+                let d = f64::midpoint(rest, gap);
                 let e = |vc: f64| (u / rx).powi(2) + ((v - vc) / ry).powi(2) <= 1.0;
                 e(-d) || e(d)
             }
@@ -209,9 +211,9 @@ impl Silhouette {
         use std::f64::consts::PI;
         match *self {
             Self::Person => PI * (13.0 * 30.0 + 49.0),
-            Self::TwoLobes { rx, ry, .. } => {
+            Self::TwoLobes { rx, ry, rest, .. } => {
                 // two ellipses minus their lens (the lens of two unit circles at distance 2d)
-                let d = (0.9 * ry + self.gap(t) / 2.0) / ry; // half the centre distance, unit
+                let d = f64::midpoint(rest, self.gap(t)) / ry; // half the centre distance, unit
                 let lens = if d >= 1.0 {
                     0.0
                 } else {
@@ -325,17 +327,24 @@ impl WalkerSpec {
             .into());
         }
         if let Silhouette::TwoLobes {
-            rx, ry, max_gap, ..
+            rx,
+            ry,
+            rest,
+            max_gap,
+            ..
         } = self.silhouette
             && !(rx > 0.0
                 && ry > 0.0
                 && rx <= 1000.0
                 && ry <= 1000.0
+                && (0.0..=1000.0).contains(&rest)
                 && (0.0..=1000.0).contains(&max_gap))
         {
             return Err(CoreError::invalid(
                 "two-lobe silhouette",
-                format!("rx {rx}, ry {ry} must be in (0, 1000] and max_gap {max_gap} in [0, 1000]"),
+                format!(
+                    "rx {rx}, ry {ry} must be in (0, 1000], rest {rest} and max_gap {max_gap} in [0, 1000]"
+                ),
             )
             .into());
         }
@@ -617,6 +626,29 @@ impl WalkersScenario {
             walkers,
             textures,
         })
+    }
+
+    /// The first `frames` frames of this video (the frames, ground truth and events of those
+    /// frames are unchanged).
+    ///
+    /// Errors: `frames` is 0 or more than the video has.
+    pub fn truncated(mut self, frames: u64) -> Result<Self, SimError> {
+        if frames == 0 || frames > self.frames {
+            return Err(CoreError::invalid(
+                "walkers frames",
+                format!("{frames}: {} has 1..={} frames", self.name, self.frames),
+            )
+            .into());
+        }
+        self.frames = frames;
+        Ok(self)
+    }
+
+    /// The same video under another sequence name (for custom scenarios).
+    #[must_use]
+    pub fn named(mut self, name: impl Into<String>) -> Self {
+        self.name = name.into();
+        self
     }
 
     /// The sequence name (`walkers-v1`, ...; `walkers-custom` for custom scenarios).
@@ -1067,6 +1099,11 @@ mod tests {
         assert_eq!(v1.frame(0).unwrap(), e.frame(0).unwrap());
         assert_eq!(WalkersVariant::parse("AB").unwrap(), WalkersVariant::Ab);
         assert!(WalkersVariant::parse("walkers-v2").is_err());
+        let short = ab.clone().truncated(10).unwrap();
+        assert_eq!(short.len(), 10);
+        assert_eq!(short.frame(9).unwrap(), ab.frame(9).unwrap());
+        assert!(short.frame(10).is_err());
+        assert!(ab.clone().truncated(0).is_err() && ab.truncated(451).is_err());
     }
 
     #[test]
@@ -1089,6 +1126,7 @@ mod tests {
         let s = Silhouette::TwoLobes {
             rx: 10.0,
             ry: 15.0,
+            rest: 27.0,
             split_from: 10,
             split_frames: 20,
             max_gap: 12.0,
