@@ -246,6 +246,11 @@ fn help_teaches() {
     assert!(stdout.contains("EXAMPLE") && stdout.contains("frame,id,bb_left"));
     let (_, stdout, _) = quarry(&["demo", "--help"]);
     assert!(stdout.contains("EXAMPLE") && stdout.contains("--json"));
+    let (code, stdout, _) = quarry(&["video", "sim", "--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("EXAMPLE") && stdout.contains("events.json"));
+    let (_, stdout, _) = quarry(&["video", "--help"]);
+    assert!(stdout.contains("quarry video sim") && stdout.contains("--frames"));
 }
 
 #[test]

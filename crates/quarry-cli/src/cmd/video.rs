@@ -118,7 +118,8 @@ pub struct VideoArgs {
 /// Subcommands of `quarry video`.
 #[derive(Debug, Subcommand)]
 pub enum VideoSub {
-    /// The synthetic video walkers-v1 (spec 004 §5.2).
+    // no doc comment: clap would take it as the subcommand's help and hide the long help
+    // written on `SimArgs` (see main.rs)
     Sim(super::video_sim::SimArgs),
 }
 
