@@ -326,6 +326,20 @@ impl WalkerSpec {
             }
             .into());
         }
+        let bounded = self.start.iter().all(|v| v.abs() <= 1e6)
+            && self.velocity.iter().all(|v| v.abs() <= 1e3)
+            && self.mean.abs() <= 1e4
+            && self.texture.abs() <= 1e4;
+        if !bounded {
+            return Err(CoreError::invalid(
+                "walker",
+                format!(
+                    "{}: start must be within ±1e6 px, velocity within ±1e3 px/frame, mean and texture within ±1e4",
+                    self.name
+                ),
+            )
+            .into());
+        }
         if let Silhouette::TwoLobes {
             rx,
             ry,
@@ -1147,6 +1161,12 @@ mod tests {
         w.velocity[0] = f64::NAN;
         assert!(WalkersScenario::custom(10, vec![w]).is_err());
         assert!(WalkersScenario::with_size(0, 10, 10, vec![], 1).is_err());
+        let mut far = WalkerSpec::v1()[0];
+        far.start = [1e300, 0.0];
+        assert!(WalkersScenario::custom(10, vec![far]).is_err());
+        far.start = [0.0, 0.0];
+        far.velocity = [1e9, 0.0];
+        assert!(WalkersScenario::custom(10, vec![far]).is_err());
     }
 
     proptest! {
