@@ -12,7 +12,6 @@ use quarry_core::{MultiTargetTracker, Stamp};
 use quarry_repro::video::{FRAME_DT, check_determinism, check_empty, check_walkers, run_walkers};
 use quarry_sim::walkers::{Silhouette, WalkerSpec, WalkersScenario, WalkersVariant};
 use quarry_trackers::watershed_sift::{WatershedSiftConfig, WatershedSiftTracker};
-use quarry_vision::MotionTest;
 
 /// T4 on `walkers-v1`: E1, E3, E4 and E7 hold; of E2, E5 and E6 the parts that hold (the
 /// walkers' own tracks are pure, IDF1 and HOTA reach their targets). The report is printed.
@@ -79,7 +78,6 @@ fn the_motion_test_accepts_a_two_pixel_flip() {
     assert!(s.moving && s.variance == 0.0, "{s:?}");
     let walk: Vec<(f64, f64)> = (0..10).map(|k| (1.5 * f64::from(k), 0.0)).collect();
     assert!(test.evaluate(&walk).unwrap().unwrap().moving);
-    let _: &MotionTest = &test;
 }
 
 /// T4 on `walkers-v1-empty`: the finding of the test above on a video without walkers. What
