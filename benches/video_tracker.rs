@@ -1,7 +1,11 @@
-//! The full watershed + SIFT tracker (spec 004) per frame at 768×576 on PETS09-S2L1, one
-//! thread: the tracker is run over frames 1-20, then each sample steps a clone of that state on
-//! frame 21 (the clone is not timed), for both profiles. Skipped with a message when the data
-//! are absent (`../shared/data/pets09-s2l1`).
+//! The full watershed + SIFT tracker (spec 004) per frame, one thread, both profiles:
+//!
+//! - at 768×576 on PETS09-S2L1: the tracker is run over frames 1-20, then each sample steps a
+//!   clone of that state on frame 21 (the clone is not timed). Skipped with a message when the
+//!   data are absent (`../shared/data/pets09-s2l1`).
+//! - at 800×450 on the synthetic `walkers-v1-ab` and `walkers-v1` (spec §7.2), generated in
+//!   process (no data needed): the tracker is run over frames 0-249, then each sample steps a
+//!   clone on frame 250 (A and B live in both; C and D too in `walkers-v1`).
 //!
 //! `cargo bench --bench video_tracker -- --noplot`
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
@@ -34,6 +38,48 @@ fn frames() -> Option<Vec<quarry::core::Plane<u8>>> {
             .map(|f| rgb_to_gray_bt601(&quarry::vision::io::open_image(f).unwrap().to_rgb8()))
             .collect(),
     )
+}
+
+fn walkers(c: &mut Criterion) {
+    use quarry::sim::walkers::{WalkersScenario, WalkersVariant};
+    const AT: u64 = 250;
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let mut g = c.benchmark_group("video_tracker");
+    g.sample_size(20).measurement_time(Duration::from_secs(8));
+    for variant in [WalkersVariant::Ab, WalkersVariant::V1] {
+        let sc = WalkersScenario::new(variant).unwrap();
+        let last = sc.frame(AT).unwrap();
+        for (name, cfg) in [
+            ("paper", WatershedSiftConfig::paper()),
+            ("robust", WatershedSiftConfig::robust()),
+        ] {
+            let mut warm = WatershedSiftTracker::new(cfg).unwrap();
+            one.install(|| {
+                for t in 0..AT {
+                    warm.step(Stamp::from_frame(t, 0.04), &sc.frame(t).unwrap())
+                        .unwrap();
+                }
+            });
+            g.bench_function(
+                format!("{}_800x450_frame{AT}/{name}", variant.name()),
+                |b| {
+                    b.iter_batched(
+                        || warm.clone(),
+                        |mut t| {
+                            one.install(|| {
+                                black_box(t.step(Stamp::from_frame(AT, 0.04), &last).unwrap())
+                            })
+                        },
+                        BatchSize::LargeInput,
+                    );
+                },
+            );
+        }
+    }
+    g.finish();
 }
 
 fn video_tracker(c: &mut Criterion) {
@@ -72,5 +118,5 @@ fn video_tracker(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, video_tracker);
+criterion_group!(benches, video_tracker, walkers);
 criterion_main!(benches);

@@ -223,6 +223,12 @@ fn demo_json_reports_kf_rmse() {
     };
     assert!(idf1("jipda") >= 0.9, "jipda IDF1 {}", idf1("jipda"));
     assert!(idf1("jipda") >= idf1("faithful"));
+    // the video tracker's row: both walkers found in the short clip
+    let ws = rows
+        .iter()
+        .find(|r| r["tracker"] == "watershed-sift" && r["metric"] == "IDF1")
+        .expect("watershed-sift IDF1 row");
+    assert!(ws["value"].as_f64().unwrap() > 0.3, "{ws}");
     // same seed, same numbers (only the KF demo, to keep the test fast)
     let (code, again, _) = quarry(&["demo", "--json", "--only", "kf-cv"]);
     assert_eq!(code, 0);
@@ -240,6 +246,11 @@ fn help_teaches() {
     assert!(stdout.contains("EXAMPLE") && stdout.contains("frame,id,bb_left"));
     let (_, stdout, _) = quarry(&["demo", "--help"]);
     assert!(stdout.contains("EXAMPLE") && stdout.contains("--json"));
+    let (code, stdout, _) = quarry(&["video", "sim", "--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("EXAMPLE") && stdout.contains("events.json"));
+    let (_, stdout, _) = quarry(&["video", "--help"]);
+    assert!(stdout.contains("quarry video sim") && stdout.contains("--frames"));
 }
 
 #[test]
@@ -782,6 +793,128 @@ fn video_runs_writes_results_and_scores_like_eval() {
     let e: Value = serde_json::from_str(s2.trim()).unwrap();
     for k in ["mota", "idf1", "hota", "fp", "fn", "idsw"] {
         assert_eq!(v["metrics"][k], e[k], "{k}");
+    }
+}
+
+/// `quarry video sim` writes a MOTChallenge sequence that `quarry video` reads back: the
+/// tracker's result file is byte-identical to the one `--score` wrote from the in-memory
+/// frames, and so are the metrics.
+#[test]
+fn video_sim_writes_a_sequence_that_video_reads_back() {
+    let d = tmpdir("video-sim");
+    let seq = d.join("ab");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "video",
+        "sim",
+        "--variant",
+        "ab",
+        "--frames",
+        "90",
+        "--score",
+        "--out",
+        seq.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["sequence"], "walkers-v1-ab");
+    assert_eq!(v["frames"], 90);
+    assert_eq!(v["events"]["walkers"][0]["half_in_view"], 34);
+    for f in [
+        "img1/000001.png",
+        "img1/000090.png",
+        "gt/gt.txt",
+        "events.json",
+        "seqinfo.ini",
+        "pools.png",
+    ] {
+        assert!(seq.join(f).exists(), "{f}");
+    }
+    assert!(!seq.join("img1/000091.png").exists());
+    let gt_text = std::fs::read_to_string(seq.join("gt/gt.txt")).unwrap();
+    assert_eq!(
+        gt_text.lines().count(),
+        v["gt_rows"].as_u64().unwrap() as usize
+    );
+    assert!(
+        std::fs::read_to_string(seq.join("seqinfo.ini"))
+            .unwrap()
+            .contains("seqLength=90")
+    );
+    let sim_res = std::fs::read(v["score"]["results"].as_str().unwrap()).unwrap();
+    assert!(!sim_res.is_empty());
+
+    let out = d.join("run");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "video",
+        "--frames",
+        seq.join("img1").to_str().unwrap(),
+        "--gt",
+        seq.join("gt/gt.txt").to_str().unwrap(),
+        "--name",
+        "ab",
+        "--no-images",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let w: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(w["frames"], 90);
+    assert_eq!(std::fs::read(out.join("ab.txt")).unwrap(), sim_res);
+    for k in ["mota", "idf1"] {
+        let (a, b) = (
+            w["metrics"][k].as_f64().unwrap(),
+            v["score"]["metrics"][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 1e-12, "{k}: {a} vs {b}");
+    }
+    assert_eq!(w["metrics"]["idsw"], v["score"]["metrics"]["idsw"]);
+}
+
+/// Absurd `quarry video sim` flags are clear errors, and `quarry video` still needs --frames.
+#[test]
+fn video_sim_rejects_bad_flags() {
+    let d = tmpdir("video-sim-bad");
+    let o = d.to_str().unwrap();
+    for (args, needle) in [
+        (
+            vec!["video", "sim", "--frames", "0", "--out", o],
+            "at least 1",
+        ),
+        (
+            vec!["video", "sim", "--frames", "ten", "--out", o],
+            "whole number",
+        ),
+        (
+            vec!["video", "sim", "--variant", "v9", "--out", o],
+            "expected v1, ab or empty",
+        ),
+        (
+            vec![
+                "video",
+                "sim",
+                "--variant",
+                "empty",
+                "--frames",
+                "201",
+                "--out",
+                o,
+            ],
+            "has 200 frames",
+        ),
+        (vec!["video", "--out", o], "--frames"),
+        (
+            vec![
+                "video", "sim", "--frames", "2", "--out", o, "--range", "1..2",
+            ],
+            "--range",
+        ),
+    ] {
+        let (code, _o, e) = quarry(&args);
+        assert_ne!(code, 0, "{args:?}");
+        assert!(e.contains(needle), "{args:?}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
     }
 }
 

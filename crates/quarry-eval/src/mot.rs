@@ -173,7 +173,17 @@ impl MotEvaluation {
 
     /// CLEAR MOT with py-motmetrics' conventions (see the module docs).
     pub fn clear_mot(&self) -> Result<ClearMot, EvalError> {
-        clear_mot_prepared(self)
+        clear_mot_prepared(self, None)
+    }
+
+    /// The correspondences CLEAR MOT settles on, per frame: `(ground-truth id, hypothesis id)`
+    /// for every matched pair (carried-forward and newly assigned alike), in the order of the
+    /// frames given to [`MotEvaluation::new`]. For checks such as "the track that carried
+    /// object A before an occlusion carries it again after".
+    pub fn clear_matches(&self) -> Result<Vec<Vec<(i64, i64)>>, EvalError> {
+        let mut out = Vec::with_capacity(self.frames.len());
+        clear_mot_prepared(self, Some(&mut out))?;
+        Ok(out)
     }
 
     /// The identity measures IDF1, IDP, IDR.
@@ -296,7 +306,10 @@ pub fn clear_mot<T, S: Similarity<T> + ?Sized>(
     MotEvaluation::new(frames, similarity)?.clear_mot()
 }
 
-fn clear_mot_prepared(ev: &MotEvaluation) -> Result<ClearMot, EvalError> {
+fn clear_mot_prepared(
+    ev: &MotEvaluation,
+    mut matches: Option<&mut Vec<Vec<(i64, i64)>>>,
+) -> Result<ClearMot, EvalError> {
     let n_gt = ev.gt_ids.len();
     let n_hyp = ev.hyp_ids.len();
     // py-motmetrics accumulator state
@@ -390,6 +403,17 @@ fn clear_mot_prepared(ev: &MotEvaluation) -> Result<ClearMot, EvalError> {
                 m[o] = Some(h);
                 res_m[h] = Some(o);
             }
+        }
+        if let Some(out) = matches.as_deref_mut() {
+            out.push(
+                (0..no)
+                    .filter_map(|i| {
+                        let o = f.gt[i];
+                        let h = m[o]?;
+                        (o_masked[i] && f.hyp.contains(&h)).then(|| (ev.gt_ids[o], ev.hyp_ids[h]))
+                    })
+                    .collect(),
+            );
         }
         for i in 0..no {
             tracked_states[f.gt[i]].push(o_masked[i]);
@@ -768,4 +792,37 @@ pub fn evaluate<T, S: Similarity<T> + ?Sized>(
     similarity: &S,
 ) -> Result<MotSummary, EvalError> {
     MotEvaluation::new(frames, similarity)?.summary()
+}
+
+#[cfg(test)]
+mod match_tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::Euclidean;
+
+    /// The matches carry an established pair forward even when another hypothesis is nearer,
+    /// and count as a switch only when the pair breaks.
+    #[test]
+    fn clear_matches_follow_the_carry_forward_rule() {
+        let f = |gt: Vec<(i64, [f64; 2])>, hyp: Vec<(i64, [f64; 2])>| Frame { gt, hyp };
+        let frames = vec![
+            f(vec![(1, [0.0, 0.0])], vec![(10, [0.3, 0.0])]),
+            // 11 is nearer, but 10 is still within the threshold: 10 keeps the object
+            f(
+                vec![(1, [0.0, 0.0])],
+                vec![(10, [0.4, 0.0]), (11, [0.0, 0.0])],
+            ),
+            // 10 leaves the threshold: 11 takes over (a switch)
+            f(
+                vec![(1, [0.0, 0.0])],
+                vec![(10, [2.0, 0.0]), (11, [0.0, 0.0])],
+            ),
+            f(vec![(1, [0.0, 0.0])], vec![]),
+        ];
+        let ev = MotEvaluation::new(&frames, &Euclidean::new(0.5).unwrap()).unwrap();
+        let m = ev.clear_matches().unwrap();
+        assert_eq!(m, vec![vec![(1, 10)], vec![(1, 10)], vec![(1, 11)], vec![]]);
+        let c = ev.clear_mot().unwrap();
+        assert_eq!((c.num_switches, c.num_misses), (1, 1));
+    }
 }

@@ -13,3 +13,4 @@ pub mod segment;
 pub mod sift;
 pub mod slamot;
 pub mod video;
+pub mod video_sim;

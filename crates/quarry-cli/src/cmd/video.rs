@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ab_glyph::{FontRef, PxScale};
-use clap::Args;
+use clap::{Args, Subcommand};
 use image::RgbImage;
 use imageproc::drawing::{draw_hollow_rect_mut, draw_text_mut};
 use imageproc::rect::Rect;
@@ -26,6 +26,8 @@ use crate::progress;
 /// Arguments of `quarry video`.
 #[derive(Debug, Args)]
 #[command(
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true,
     about = "Track people in an image sequence with the watershed + SIFT pools tracker (paper 004)",
     long_about = "Fully automatic multi-object tracking of spec 004 (Hu et al. 2012) on an image \
 sequence from a static camera: no detector and no initial boxes. Each frame is segmented (ramp, \
@@ -56,6 +58,9 @@ GT.txt --res OUT/<name>.txt` does (box IoU >= 0.5), on the frames processed.
 Ctrl-C (or SIGTERM) stops after the current frame: the results so far are written and scored \
 (\"interrupted\": true) and the exit status is 130.
 
+SYNTHETIC DATA: `quarry video sim --out DIR` writes the synthetic video walkers-v1 of spec 004 \
+§5.2 (frames, ground truth, events) and can score the tracker on it (`quarry video sim --help`).
+
 JSON (--json) prints one object with: name, frames, interrupted, profile, results (path), \
 tracks (distinct ids), boxes, ms_per_frame (mean tracker time per frame, excluding image I/O and \
 drawing), stages_ms {segment, map, sift, track, foreground} (means per frame; foreground = the \
@@ -64,12 +69,17 @@ used), and with --gt: metrics (the object of `quarry eval --json`).
 
 EXAMPLE:
   quarry video --frames ../shared/data/pets09-s2l1/img1 --gt ../shared/data/pets09-s2l1/gt.txt \\
-      --profile robust --person-size 36x90 --out runs/pets-robust"
+      --profile robust --person-size 36x90 --out runs/pets-robust
+  quarry video sim --variant ab --frames 120 --out runs/walkers-ab
+  quarry video --frames runs/walkers-ab/img1 --gt runs/walkers-ab/gt/gt.txt --out runs/ab-paper"
 )]
 pub struct VideoArgs {
+    /// `sim`: write (and optionally score) the synthetic walkers video.
+    #[command(subcommand)]
+    pub sub: Option<VideoSub>,
     /// Directory of frames.
-    #[arg(long, value_name = "DIR")]
-    pub frames: PathBuf,
+    #[arg(long, value_name = "DIR", required = true)]
+    pub frames: Option<PathBuf>,
     /// MOTChallenge ground truth to score against.
     #[arg(long, value_name = "GT.txt")]
     pub gt: Option<PathBuf>,
@@ -90,8 +100,8 @@ pub struct VideoArgs {
     #[arg(long)]
     pub name: Option<String>,
     /// Output directory (created if needed).
-    #[arg(long, value_name = "DIR")]
-    pub out: PathBuf,
+    #[arg(long, value_name = "DIR", required = true)]
+    pub out: Option<PathBuf>,
     /// Do not write annotated frames.
     #[arg(long)]
     pub no_images: bool,
@@ -103,6 +113,14 @@ pub struct VideoArgs {
     /// Frame rate for the recording's stamps (frame k at (k - 1) / fps seconds; PETS09 is 7).
     #[arg(long, default_value_t = 25.0)]
     pub fps: f64,
+}
+
+/// Subcommands of `quarry video`.
+#[derive(Debug, Subcommand)]
+pub enum VideoSub {
+    // no doc comment: clap would take it as the subcommand's help and hide the long help
+    // written on `SimArgs` (see main.rs)
+    Sim(super::video_sim::SimArgs),
 }
 
 /// The stamp of 1-based frame `k` at `fps`.
@@ -267,11 +285,17 @@ fn annotate(grey: &Plane<u8>, rows: &[(MotRow, bool, usize)], font: &FontRef<'_>
     img
 }
 
-/// Runs `quarry video`.
+/// Runs `quarry video` (or `quarry video sim`).
 pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
+    if let Some(VideoSub::Sim(a)) = &args.sub {
+        return super::video_sim::run(a, out);
+    }
+    let (Some(frames_arg), Some(out_dir)) = (&args.frames, &args.out) else {
+        return Err("quarry video needs --frames DIR and --out DIR (or the subcommand sim)".into());
+    };
     let cfg = load_config(args)?;
-    let files = quarry_data::image_sequence::list_frames(&args.frames)
-        .map_err(|e| format!("--frames {}: {e}", args.frames.display()))?;
+    let files = quarry_data::image_sequence::list_frames(frames_arg)
+        .map_err(|e| format!("--frames {}: {e}", frames_arg.display()))?;
     let (a, b) = match &args.range {
         Some(s) => super::motion::parse_range("--range", s, files.len())?,
         None => (1, files.len()),
@@ -284,20 +308,20 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         ),
         None => None,
     };
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
-    let frames_dir = args.out.join("frames");
+    std::fs::create_dir_all(out_dir)
+        .map_err(|e| format!("cannot create {}: {e}", out_dir.display()))?;
+    let frames_dir = out_dir.join("frames");
     if !args.no_images {
         std::fs::create_dir_all(&frames_dir)
             .map_err(|e| format!("cannot create {}: {e}", frames_dir.display()))?;
     }
-    let cfg_path = args.out.join("config.toml");
+    let cfg_path = out_dir.join("config.toml");
     std::fs::write(&cfg_path, cfg.to_toml()?)
         .map_err(|e| format!("cannot write {}: {e}", cfg_path.display()))?;
     let name = args
         .name
         .clone()
-        .unwrap_or_else(|| sequence_name(&args.frames));
+        .unwrap_or_else(|| sequence_name(frames_arg));
     let font = FontRef::try_from_slice(crate::fonts::DEJAVU_SANS_MONO)
         .map_err(|e| format!("bundled font: {e}"))?;
 
@@ -386,7 +410,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
     }
     pb.finish_and_clear();
     let mcap_info = mcap.map(crate::record::Mcap::finish).transpose()?;
-    let res_path = args.out.join(format!("{name}.txt"));
+    let res_path = out_dir.join(format!("{name}.txt"));
     let f = std::fs::File::create(&res_path)
         .map_err(|e| format!("cannot write {}: {e}", res_path.display()))?;
     write_results(std::io::BufWriter::new(f), &rows)
