@@ -240,6 +240,20 @@ pub struct WatershedSiftConfig {
     /// the ground (no minimum on them), people standing or walking slowly, and the second
     /// person of a pair whose blurred images share one minimum (docs/video-tracker.md).
     pub fg_births: bool,
+    /// Foreground births wait while an occluded target is near \[ext, ours; `robust`: true\]:
+    /// a birth blob within one box (`box_w` horizontally, `box_h` vertically) of an occluded
+    /// target's box is not born. A person re-emerging from a group is one of its members, and
+    /// separation (§2.15) or step 6's ownership test against the members' pools hands the
+    /// person's regions back to their own track; a birth, which asks no pool, took B from its
+    /// occluded track at the A/B crossing of walkers-v1 (docs/video-tracker.md, finding 3).
+    pub births_wait_for_occluded: bool,
+    /// An occluded target holds the region it is located in \[ext, ours; `robust`: true\]:
+    /// when offset voting (`offset_voting`) locates an occluded target in a region next to the
+    /// group's region that holds foreground (with the background model) and is no other
+    /// target's successor region, the target also holds that region. Without it the located
+    /// centre leaves the group's region, the group dissolves, and the target holds only the
+    /// group's region, which its partner wins: the target is lost (finding 3).
+    pub occluded_hold_located: bool,
     /// Background regions take no part in steps 4 and 6 \[ext, ours; `robust`: true\]: a
     /// region holding fewer than `fg_min_frac`/4 · w·h foreground pixels is not a candidate
     /// fragment for the SIFT ownership test (step 4) and its moving point neither joins nor
@@ -315,6 +329,8 @@ impl WatershedSiftConfig {
             fg_max_scale: 1.6,
             fg_max_aspect: 1.3,
             fg_births: false,
+            births_wait_for_occluded: false,
+            occluded_hold_located: false,
             fg_skip_background: false,
             birth_min_frac: 0.3,
             birth_frames: 3,
@@ -336,6 +352,8 @@ impl WatershedSiftConfig {
             fg_box: true,
             fg_gate: true,
             fg_births: true,
+            births_wait_for_occluded: true,
+            occluded_hold_located: true,
             fg_skip_background: true,
             bg_selective: true,
             stuck_needs_no_fg: true,

@@ -763,6 +763,19 @@ impl WatershedSiftTracker {
                         });
                     }
                     push(&mut claims[k], l, Provenance::Occlusion);
+                    // [ext] occluded_hold_located: the region the target is located in
+                    if self.cfg.occluded_hold_located
+                        && let Some(c) = located[k]
+                    {
+                        let l2 = lab(pixel(c, w, h));
+                        let taken = provisional
+                            .iter()
+                            .enumerate()
+                            .any(|(o, pr)| o != k && !occluded[o] && pr.contains(&l2));
+                        if l2 != l && adj.are_adjacent(l, l2) && !background_region(l2) && !taken {
+                            push(&mut claims[k], l2, Provenance::Occlusion);
+                        }
+                    }
                 } else {
                     for j in bi {
                         push(&mut claims[k], j, Provenance::Bidirectional);
@@ -1467,6 +1480,19 @@ impl WatershedSiftTracker {
                 .unwrap_or(0)
                 + 1;
             if streak < self.cfg.birth_frames {
+                next.push((b, streak));
+                continue;
+            }
+            // [ext] births_wait_for_occluded: a blob within one box of an occluded target's box
+            if self.cfg.births_wait_for_occluded
+                && self.targets.iter().any(|tg| {
+                    tg.occluded && {
+                        let c = tg.centre;
+                        let (hw, hh) = (1.5 * cfg.box_w, 1.5 * cfg.box_h);
+                        c[0] > b[0] - hw && c[0] < b[2] + hw && c[1] > b[1] - hh && c[1] < b[3] + hh
+                    }
+                })
+            {
                 next.push((b, streak));
                 continue;
             }
