@@ -68,6 +68,22 @@ pub struct VideoRun {
     pub pools: Vec<(u64, u32, usize, bool)>,
     /// Mean tracker time per frame, milliseconds (informational; never compared).
     pub ms_per_frame: f64,
+    /// Median and 95th percentile (nearest rank) of the tracker time per frame, milliseconds
+    /// (informational; never compared; spec §7.2 states its goal on these).
+    pub ms_p50_p95: [f64; 2],
+}
+
+/// The `q`-quantile (0..=1) of `values` by the nearest-rank rule (the smallest value with at
+/// least `q`·n values at or below it); NaN for an empty slice.
+#[must_use]
+pub fn nearest_rank(values: &[f64], q: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let rank = (q.clamp(0.0, 1.0) * v.len() as f64).ceil() as usize;
+    v[rank.clamp(1, v.len()) - 1]
 }
 
 impl VideoRun {
@@ -110,6 +126,7 @@ impl VideoRun {
                 .copied()
                 .collect(),
             ms_per_frame: self.ms_per_frame,
+            ms_p50_p95: self.ms_p50_p95,
         }
     }
 
@@ -156,12 +173,12 @@ pub fn run_walkers(
     let mut tr = WatershedSiftTracker::new(cfg.clone())?;
     let mut boxes = Vec::new();
     let mut pools = Vec::new();
-    let mut ms = 0.0;
+    let mut ms = Vec::with_capacity(n as usize);
     for t in 0..n {
         let f = scenario.frame(t)?;
         let start = std::time::Instant::now();
         let reports = tr.step(Stamp::from_frame(t, FRAME_DT), &f)?;
-        ms += start.elapsed().as_secs_f64() * 1e3;
+        ms.push(start.elapsed().as_secs_f64() * 1e3);
         let targets = tr.targets();
         for r in &reports {
             let Some(bbox) = r.bbox else { continue };
@@ -189,7 +206,8 @@ pub fn run_walkers(
         frames: n,
         boxes,
         pools,
-        ms_per_frame: ms / n as f64,
+        ms_per_frame: ms.iter().sum::<f64>() / n as f64,
+        ms_p50_p95: [nearest_rank(&ms, 0.5), nearest_rank(&ms, 0.95)],
     })
 }
 
@@ -787,4 +805,20 @@ pub fn threshold_grid(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::nearest_rank;
+
+    #[test]
+    fn nearest_rank_quantiles() {
+        let v: Vec<f64> = (1..=20).rev().map(f64::from).collect();
+        assert_eq!(nearest_rank(&v, 0.5), 10.0);
+        assert_eq!(nearest_rank(&v, 0.95), 19.0);
+        assert_eq!(nearest_rank(&v, 0.0), 1.0);
+        assert_eq!(nearest_rank(&v, 1.0), 20.0);
+        assert_eq!(nearest_rank(&[7.0], 0.95), 7.0);
+        assert!(nearest_rank(&[], 0.5).is_nan());
+    }
 }

@@ -63,7 +63,7 @@ SYNTHETIC DATA: `quarry video sim --out DIR` writes the synthetic video walkers-
 
 JSON (--json) prints one object with: name, frames, interrupted, profile, results (path), \
 tracks (distinct ids), boxes, ms_per_frame (mean tracker time per frame, excluding image I/O and \
-drawing), stages_ms {segment, map, sift, track, foreground} (means per frame; foreground = the \
+drawing), ms_p50 and ms_p95 (its median and 95th percentile), stages_ms {segment, map, sift, track, foreground} (means per frame; foreground = the \
 background model and the robust profile's foreground boxes and births), config (the configuration \
 used), and with --gt: metrics (the object of `quarry eval --json`).
 
@@ -175,6 +175,8 @@ struct VideoJson {
     tracks: usize,
     boxes: usize,
     ms_per_frame: f64,
+    ms_p50: f64,
+    ms_p95: f64,
     stages_ms: StagesMs,
     config: WatershedSiftConfig,
     metrics: Option<EvalReport>,
@@ -334,7 +336,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
     crate::interrupt::install();
     let mut rows: Vec<MotRow> = Vec::new();
     let mut size: Option<(u32, u32, PathBuf)> = None;
-    let (mut total_ms, mut stages) = (0.0, StagesMs::default());
+    let (mut frame_ms, mut stages) = (Vec::new(), StagesMs::default());
     let mut processed = 0usize;
     for (k, path) in files[a - 1..b].iter().enumerate() {
         if crate::interrupt::requested() {
@@ -360,7 +362,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         let reports = tracker
             .step(Stamp::from_frame(frame_no - 1, 1.0), &grey)
             .map_err(|e| format!("frame {}: {e}", path.display()))?;
-        total_ms += t.elapsed().as_secs_f64() * 1e3;
+        frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
         let st = tracker.diagnostics().times;
         stages.segment += st.segment_us / 1e3;
         stages.map += st.map_us / 1e3;
@@ -441,7 +443,9 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         results: res_path.display().to_string(),
         tracks: ids.len(),
         boxes: rows.len(),
-        ms_per_frame: total_ms / n,
+        ms_per_frame: frame_ms.iter().sum::<f64>() / n,
+        ms_p50: quarry_repro::video::nearest_rank(&frame_ms, 0.5),
+        ms_p95: quarry_repro::video::nearest_rank(&frame_ms, 0.95),
         stages_ms: StagesMs {
             segment: stages.segment / n,
             map: stages.map / n,

@@ -47,7 +47,8 @@ of spec §5.2 (checks.json), on empty the false-track check. --grid runs the thr
 centre RMSE, and the largest per-frame centre difference to the profile's own run.
 
 JSON (--json) prints one object: sequence, frames, dir, images, gt_rows, events (as in \
-events.json), score (null without --score: profile, results, ms_per_frame, metrics {mota, motp \
+events.json), score (null without --score: profile, results, ms_per_frame, ms_p50, ms_p95 (median and 95th \
+percentile of the tracker time per frame), metrics {mota, motp \
 (as 1 - IoU, py-motmetrics), idf1, hota, idsw, fp, fn_, gt, centre_rmse}, checks (E1-E6 with \
 the numbers behind each, v1 only), empty (empty only), pools_png) and grid (null without \
 --grid: one object per configuration).
@@ -98,6 +99,8 @@ struct ScoreJson {
     profile: &'static str,
     results: String,
     ms_per_frame: f64,
+    ms_p50: f64,
+    ms_p95: f64,
     metrics: Metrics,
     checks: Option<WalkersChecks>,
     empty: Option<EmptyCheck>,
@@ -229,6 +232,8 @@ fn score_run(
         profile: profile.name(),
         results: res_path.display().to_string(),
         ms_per_frame: run.ms_per_frame,
+        ms_p50: run.ms_p50_p95[0],
+        ms_p95: run.ms_p50_p95[1],
         metrics,
         checks,
         empty,
@@ -360,8 +365,8 @@ fn human(j: &SimJson) -> String {
         let m = &sc.metrics;
         let _ = writeln!(
             s,
-            "tracker ({}, {:.1} ms per frame): results in {}, pool plot {}",
-            sc.profile, sc.ms_per_frame, sc.results, sc.pools_png
+            "tracker ({}, {:.1} ms per frame, median {:.1}, p95 {:.1}): results in {}, pool plot {}",
+            sc.profile, sc.ms_per_frame, sc.ms_p50, sc.ms_p95, sc.results, sc.pools_png
         );
         let mut t = Table::new(["MOTA", "IDF1", "HOTA", "IDSW", "FP", "FN", "centre RMSE"]);
         t.row([
