@@ -799,6 +799,40 @@ fn video_runs_writes_results_and_scores_like_eval() {
 /// `quarry video sim` writes a MOTChallenge sequence that `quarry video` reads back: the
 /// tracker's result file is byte-identical to the one `--score` wrote from the in-memory
 /// frames, and so are the metrics.
+/// `video sim --config` lays a TOML file over the profile: a 44-px box shows in the results.
+#[test]
+fn video_sim_score_takes_a_config_overlay() {
+    let d = tmpdir("video-sim-config");
+    let cfg = d.join("box.toml");
+    std::fs::write(&cfg, "box_w = 44.0\n").unwrap();
+    let seq = d.join("ab");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "video",
+        "sim",
+        "--variant",
+        "ab",
+        "--frames",
+        "70",
+        "--no-images",
+        "--score",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        seq.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["score"]["profile"], "paper");
+    let res = std::fs::read_to_string(seq.join("walkers-v1-ab-paper.txt")).unwrap();
+    let widths: Vec<f64> = res
+        .lines()
+        .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+        .collect();
+    assert!(!widths.is_empty(), "no box in 70 frames");
+    assert!(widths.iter().all(|&w| w == 44.0), "{widths:?}");
+}
+
 #[test]
 fn video_sim_writes_a_sequence_that_video_reads_back() {
     let d = tmpdir("video-sim");
@@ -877,6 +911,9 @@ fn video_sim_writes_a_sequence_that_video_reads_back() {
 fn video_sim_rejects_bad_flags() {
     let d = tmpdir("video-sim-bad");
     let o = d.to_str().unwrap();
+    let bad = d.join("bad.toml");
+    std::fs::write(&bad, "not_a_key = 1\n").unwrap();
+    let bad_cfg = bad.to_str().unwrap().to_owned();
     for (args, needle) in [
         (
             vec!["video", "sim", "--frames", "0", "--out", o],
@@ -904,6 +941,12 @@ fn video_sim_rejects_bad_flags() {
             "has 200 frames",
         ),
         (vec!["video", "--out", o], "--frames"),
+        (
+            vec![
+                "video", "sim", "--frames", "2", "--out", o, "--config", &bad_cfg,
+            ],
+            "not_a_key",
+        ),
         (
             vec![
                 "video", "sim", "--frames", "2", "--out", o, "--range", "1..2",

@@ -39,7 +39,8 @@ leave and is gone; box overlaps with the walker in front; near passes; frames 0-
 seqinfo.ini. --frames N keeps the first N frames.
 
 --score runs the tracker (--profile paper by default, or robust; the profiles' 30x80 box \
-fits the 26x76 walkers) on the generated frames and writes <sequence>-<profile>.txt \
+fits the 26x76 walkers; --config FILE.toml lays the keys of `quarry video --config` over the \
+profile, e.g. to switch one extension off) on the generated frames and writes <sequence>-<profile>.txt \
 (MOTChallenge results), metrics (IoU 0.5), pools.csv and pools.png (the pool size of every \
 target per frame, the paper's Fig. 10(b)); on the full v1 it also evaluates the checks E1-E6 \
 of spec §5.2 (checks.json), on empty the false-track check. --grid runs the threshold study of \
@@ -77,6 +78,10 @@ pub struct SimArgs {
     /// Tracker profile for --score and --grid (`paper` or `robust`; default paper).
     #[arg(long, value_name = "NAME", value_parser = PresetParser::<Profile>::new())]
     pub profile: Option<Profile>,
+    /// TOML configuration laid over the profile for --score and --grid (the keys of
+    /// `quarry video --config`; unknown keys are refused with the file and line).
+    #[arg(long, value_name = "FILE.toml")]
+    pub config: Option<PathBuf>,
     /// Run the threshold grid of spec §5.3 (12 tracker runs).
     #[arg(long)]
     pub grid: bool,
@@ -125,6 +130,14 @@ fn io_err(p: &Path) -> impl Fn(std::io::Error) -> CmdError + '_ {
 
 /// Runs `quarry video sim`.
 pub fn run(args: &SimArgs, out: &Output) -> CmdResult {
+    // the configuration first, so that a bad file fails before any frame is written
+    let cfg = match &args.config {
+        Some(p) => WatershedSiftConfig::from_toml_file(p, args.profile)
+            .map_err(|e| format!("--config {}: {e}", p.display()))?,
+        None => WatershedSiftConfig::preset(args.profile.unwrap_or(Profile::Paper)),
+    };
+    cfg.validate()
+        .map_err(|e| format!("tracker configuration: {e}"))?;
     let mut sc = WalkersScenario::new(args.variant)?;
     if let Some(n) = args.frames {
         if n > sc.len() {
@@ -166,8 +179,7 @@ pub fn run(args: &SimArgs, out: &Output) -> CmdResult {
     let si_path = dir.join("seqinfo.ini");
     std::fs::write(&si_path, sc.seqinfo()).map_err(io_err(&si_path))?;
 
-    let profile = args.profile.unwrap_or(Profile::Paper);
-    let cfg = WatershedSiftConfig::preset(profile);
+    let profile = cfg.preset;
     let score_json = if args.score {
         Some(score_run(&sc, &cfg, profile, args.variant, dir, out)?)
     } else {
