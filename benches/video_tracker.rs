@@ -40,13 +40,18 @@ fn frames() -> Option<Vec<quarry::core::Plane<u8>>> {
     )
 }
 
+/// A rayon pool of one thread (the benches are single-threaded).
+fn one_thread() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+}
+
 fn walkers(c: &mut Criterion) {
     use quarry::sim::walkers::{WalkersScenario, WalkersVariant};
     const AT: u64 = 250;
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let one = one_thread();
     let mut g = c.benchmark_group("video_tracker");
     g.sample_size(20).measurement_time(Duration::from_secs(8));
     for variant in [WalkersVariant::Ab, WalkersVariant::V1] {
@@ -84,10 +89,7 @@ fn walkers(c: &mut Criterion) {
 
 fn video_tracker(c: &mut Criterion) {
     let Some(frames) = frames() else { return };
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let one = one_thread();
     let mut g = c.benchmark_group("video_tracker");
     g.sample_size(20).measurement_time(Duration::from_secs(8));
     for (name, cfg) in [

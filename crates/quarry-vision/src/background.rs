@@ -226,14 +226,11 @@ impl MedianBackground {
                 min: 1,
             });
         }
-        if frame.data.len() != frame.width as usize * frame.height as usize {
-            return Err(CoreError::DimensionMismatch {
-                what: "background model frame data",
-                expected: frame.width as usize * frame.height as usize,
-                got: frame.data.len(),
-            }
-            .into());
-        }
+        quarry_core::ensure_len(
+            frame.data.len(),
+            frame.width as usize * frame.height as usize,
+            "background model frame data",
+        )?;
         if self.frames > 0 && (frame.width, frame.height) != (self.width, self.height) {
             return Err(VisionError::SizeMismatch {
                 what: "background model",
