@@ -37,6 +37,8 @@
 //! - [`store`]: per-particle landmark maps, [`store::PersistentStore`] (Arc-shared tree, O(1)
 //!   copy, O(log M) write) and [`store::VecStore`].
 //! - [`rbpf`]: the FastSLAM 1.0 per-particle landmark kernels ([`rbpf::fastslam1`]).
+//! - [`smoother`]: batch smoothing of a landmark-SLAM recording (all poses, landmarks and the
+//!   odometry calibration at once; Levenberg–Marquardt, Huber detections).
 //!
 //! ## Features
 //!
@@ -56,6 +58,7 @@ pub mod particles;
 pub mod pda;
 pub mod rbpf;
 mod small;
+pub mod smoother;
 pub mod store;
 
 pub use ekf::{Ekf, Innovation, UpdateForm};

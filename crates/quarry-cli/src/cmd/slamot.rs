@@ -9,6 +9,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use plotters::prelude::*;
 use quarry_repro::slamot::{
     SimRunResult, filter_seed, mean_var, run_mrclam, run_simulated, run_simulated_ekf,
+    smooth_mrclam,
 };
 use quarry_sim::slamot::SlamotScenarioConfig;
 use quarry_trackers::slamot::{AssociationMode, Preset, SlamotConfig, TargetWeight};
@@ -112,7 +113,11 @@ after t = 40 s).
 
 With --mrclam DIR --robot K it reads a UTIAS MRCLAM dataset: robot K does SLAM on the 15 \
 landmarks (known barcodes) and tracks the other four robots WITHOUT their barcodes (JIPDA with \
-births and deaths); scored against Vicon.
+births and deaths); scored against Vicon. --smooth plain|calibrated then refines each run with a \
+batch smoother over the whole recording (every pose and landmark at once, Huber detections, \
+started from the filter's estimate; calibrated also estimates the odometry's scales, turn-rate \
+bias and time offset) and scores it beside the filter: the filter is what a robot has online, \
+the smoother what it has after the run (docs/slamot.md).
 
 Configuration: the filter's configuration is a preset (--preset paper|s1|mrclam; `quarry \
 slamot --help` lists them) with an optional TOML file laid over it (--config FILE.toml: keys \
@@ -128,7 +133,8 @@ mrclam jipda); --mrclam always uses JIPDA with births and deaths.
 JSON (--json): {\"robot_err_mean\", \"robot_err_var\", \"target_err_mean\": [..], \
 \"target_err_var\": [..], \"losses\", \"ms_per_step\", \"runs\", \"particles\", \"mode\", \
 \"scenario\", \"filter\", \"paper\", \"interrupted\"}; with --mrclam also \"map_err\", \"ospa\", \
-\"assoc_accuracy\".
+\"assoc_accuracy\" and \"mrclam\" (every score per seed and its spread; with --smooth a \
+\"smoothed\" entry per seed and \"mrclam.smoothed\": the smoothed spreads).
 
 Ctrl-C (or SIGTERM) ends the runs after the one in progress: the report and the outputs cover \
 the runs completed (\"runs\" says how many), \"interrupted\" is true and the exit status is 130. \
@@ -136,7 +142,10 @@ A second Ctrl-C stops at once.
 
 --out DIR writes trajectories_run<r>.csv, map_run<r>.csv and fig1.png (the median run like the \
 paper's Fig. 1: truth dashed, estimates solid, true landmarks as crosses, estimated landmarks as \
-dots; robot black, targets red/green/blue; no text).
+dots; robot black, targets red/green/blue; no text). With --mrclam it writes, for the median \
+run, mrclam_robotK_trajectory.csv, _map.csv, _tracks.csv and mrclam_robotK.png (the estimate \
+over the Vicon truth), and with --smooth also mrclam_robotK_smoothed_trajectory.csv and \
+_smoothed_map.csv (the smoothed run, drawn in blue on the plot).
 
 EXAMPLES:
   quarry slamot --runs 20 --particles 50 --json
@@ -145,6 +154,7 @@ EXAMPLES:
   quarry slamot --preset s1 --config my.toml --json
   quarry slamot --filter ekf --runs 20 --json
   quarry slamot --mrclam ../shared/data/mrclam-6 --robot 1 --out out/
+  quarry slamot --mrclam ../shared/data/mrclam-6 --robot 1 --particles 100 --runs 5 --smooth plain
   quarry slamot sweep --particles 20,50,100,200 --runs 20 --out out/"
 )]
 pub struct SlamotArgs {
@@ -198,6 +208,21 @@ pub struct SlamotArgs {
     /// the recording's start time).
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
+    /// MRCLAM: also refine every run with the batch smoother (all poses and landmarks at once,
+    /// started from the filter's estimate; quarry_filter::smoother) and score it beside the
+    /// filter. `plain` takes the odometry as recorded; `calibrated` also estimates its speed
+    /// and turn-rate scales, a turn-rate bias and a time offset.
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub smooth: Option<SmoothArg>,
+}
+
+/// `--smooth` on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SmoothArg {
+    /// The odometry as recorded.
+    Plain,
+    /// The odometry's scales, turn-rate bias and time offset estimated too.
+    Calibrated,
 }
 
 /// MRCLAM measurement timing on the command line.
@@ -337,6 +362,26 @@ struct MrclamRunScores {
     neff_mean: f64,
     landmark_nis_mean: f64,
     seconds: f64,
+    /// The same run refined by the batch smoother (`--smooth`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    smoothed: Option<SmoothedScores>,
+}
+
+/// The scores of one smoothed run.
+#[derive(Debug, Clone, Serialize)]
+struct SmoothedScores {
+    robot_err: f64,
+    robot_err_max: f64,
+    ate_rmse: f64,
+    ate_rmse_aligned: f64,
+    map_err: f64,
+    map_err_aligned: f64,
+    /// speed scale, turn-rate scale, turn-rate bias (rad/s), time offset (s)
+    calibration: [f64; 4],
+    iterations: usize,
+    converged: bool,
+    downweighted: usize,
+    seconds: f64,
 }
 
 /// Every MRCLAM score: per run, and (mean, standard deviation, min, max) over runs.
@@ -353,6 +398,19 @@ struct MrclamReport {
     map_err: [f64; 4],
     gospa: [f64; 4],
     assoc_accuracy: [f64; 4],
+    /// With --smooth: the smoothed runs' robot error, aligned ATE and map error spreads.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    smoothed: Option<SmoothedSpread>,
+}
+
+/// (mean, standard deviation, min, max) over the smoothed runs.
+#[derive(Debug, Serialize)]
+struct SmoothedSpread {
+    mode: String,
+    robot_err: [f64; 4],
+    robot_err_max: [f64; 4],
+    ate_rmse_aligned: [f64; 4],
+    map_err: [f64; 4],
 }
 
 fn spread(v: impl Iterator<Item = f64>) -> [f64; 4] {
@@ -485,6 +543,13 @@ pub fn run(args: &SlamotArgs, out: &Output) -> CmdResult {
     }
     if args.particles == Some(0) || args.runs == 0 {
         return Err(SlamotCmdError::Usage("--particles and --runs must be > 0").into());
+    }
+    if args.smooth.is_some() && args.mrclam.is_none() {
+        return Err(SlamotCmdError::Usage(
+            "--smooth refines a recorded MRCLAM run: give --mrclam DIR (the simulated scenarios \
+             are scored on the filter alone)",
+        )
+        .into());
     }
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).map_err(io_err(dir))?;
@@ -1015,6 +1080,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     let mut extras = Vec::new();
     let mut scores = Vec::new();
     let mut results = Vec::new();
+    let mut smooth_results = Vec::new();
     for i in 0..args.runs {
         // Ctrl-C ends the loop after the run in progress (at least one run is reported)
         if crate::interrupt::requested() {
@@ -1024,6 +1090,28 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         let t_run = std::time::Instant::now();
         let res = run_mrclam(&cfg, &run, filter_seed(r, cfg.particles))?;
         let seconds = t_run.elapsed().as_secs_f64();
+        let sm_run = match args.smooth {
+            None => None,
+            Some(mode) => Some(smooth_mrclam(
+                &cfg,
+                &run,
+                &res,
+                mode == SmoothArg::Calibrated,
+            )?),
+        };
+        let smoothed = sm_run.as_ref().map(|sm| SmoothedScores {
+            robot_err: sm.trajectory.mean,
+            robot_err_max: sm.trajectory.max,
+            ate_rmse: sm.trajectory.ate_rmse,
+            ate_rmse_aligned: sm.trajectory.ate_rmse_aligned,
+            map_err: sm.map_score.mean,
+            map_err_aligned: sm.map_score.mean_aligned,
+            calibration: sm.calibration,
+            iterations: sm.iterations,
+            converged: sm.converged,
+            downweighted: sm.downweighted,
+            seconds: sm.ms / 1e3,
+        });
         let (rm, rv) = mean_var(&res.robot_err);
         let (tm, tv): (Vec<f64>, Vec<f64>) = res.target_err.iter().map(|e| mean_var(e)).unzip();
         let resamples = res.resampled.iter().filter(|b| **b).count();
@@ -1054,9 +1142,11 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
             neff_mean: finite_mean(res.neff.iter().copied()),
             landmark_nis_mean: finite_mean(res.landmark_nis.iter().map(|x| x.0)),
             seconds,
+            smoothed,
         });
         extras.push((res.map_err, res.ospa, res.assoc_accuracy));
         results.push(res);
+        smooth_results.push(sm_run);
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -1064,7 +1154,14 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     let mut order: Vec<usize> = (0..results.len()).collect();
     order.sort_by(|a, b| scores[*a].robot_err.total_cmp(&scores[*b].robot_err));
     if let (Some(d), Some(&med)) = (&args.out, order.get(order.len() / 2)) {
-        write_mrclam_outputs(d, args.robot, &run, &results[med], scores[med].seed)?;
+        write_mrclam_outputs(
+            d,
+            args.robot,
+            &run,
+            &results[med],
+            smooth_results[med].as_ref(),
+            scores[med].seed,
+        )?;
     }
     if let (Some(mut m), Some(&med)) = (mcap, order.get(order.len() / 2)) {
         m.metadata(
@@ -1090,6 +1187,16 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         map_err: spread(scores.iter().map(|s| s.map_err)),
         gospa: spread(scores.iter().map(|s| s.gospa)),
         assoc_accuracy: spread(scores.iter().map(|s| s.assoc_accuracy)),
+        smoothed: args.smooth.map(|mode| {
+            let sm = || scores.iter().filter_map(|s| s.smoothed.as_ref());
+            SmoothedSpread {
+                mode: format!("{mode:?}").to_lowercase(),
+                robot_err: spread(sm().map(|s| s.robot_err)),
+                robot_err_max: spread(sm().map(|s| s.robot_err_max)),
+                ate_rmse_aligned: spread(sm().map(|s| s.ate_rmse_aligned)),
+                map_err: spread(sm().map(|s| s.map_err)),
+            }
+        }),
         runs: scores,
     };
     let report = Report {
@@ -1162,6 +1269,48 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
                 f(m.gospa),
                 f(m.assoc_accuracy)
             );
+            if let Some(sm) = &m.smoothed {
+                let mut t = Table::new([
+                    "seed",
+                    "smoothed robot err (m)",
+                    "max",
+                    "ATE aligned",
+                    "map err",
+                    "v scale",
+                    "ω scale",
+                    "ω bias (rad/s)",
+                    "offset (s)",
+                    "iterations",
+                    "s",
+                ]);
+                for r in &m.runs {
+                    if let Some(x) = &r.smoothed {
+                        t.row([
+                            r.seed.to_string(),
+                            format!("{:.3}", x.robot_err),
+                            format!("{:.3}", x.robot_err_max),
+                            format!("{:.3}", x.ate_rmse_aligned),
+                            format!("{:.3}", x.map_err),
+                            format!("{:.4}", x.calibration[0]),
+                            format!("{:.4}", x.calibration[1]),
+                            format!("{:.4}", x.calibration[2]),
+                            format!("{:.3}", x.calibration[3]),
+                            format!("{}{}", x.iterations, if x.converged { "" } else { " (limit)" }),
+                            format!("{:.2}", x.seconds),
+                        ]);
+                    }
+                }
+                s.push_str(&t.render());
+                let _ = writeln!(
+                    s,
+                    "smoothed ({}): robot error {}, max {}\nATE aligned {}, map error {}",
+                    sm.mode,
+                    f(sm.robot_err),
+                    f(sm.robot_err_max),
+                    f(sm.ate_rmse_aligned),
+                    f(sm.map_err)
+                );
+            }
             let _ = writeln!(
                 s,
                 "(target k = robot {:?}[k]; measurement timing {}; paper columns are the paper's \
@@ -1291,6 +1440,7 @@ fn write_mrclam_outputs(
     robot: u32,
     run: &quarry_data::mrclam::MrclamRun,
     res: &quarry_repro::slamot::MrclamResult,
+    smoothed: Option<&quarry_repro::slamot::MrclamSmoothed>,
     seed: u64,
 ) -> Result<(), CmdError> {
     let mut s = String::from(
@@ -1336,6 +1486,38 @@ fn write_mrclam_outputs(
     }
     let p = d.join(format!("mrclam_robot{robot}_map.csv"));
     std::fs::write(&p, m).map_err(io_err(&p))?;
+    if let Some(sm) = smoothed {
+        let mut s = String::from("t,robot_x,robot_y,robot_theta,est_x,est_y,est_theta,err\n");
+        for k in 0..sm.robot_est.len().min(res.epoch_t.len()) {
+            let (a, b) = (res.robot_true[k], sm.robot_est[k]);
+            let _ = writeln!(
+                s,
+                "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5},{:.4}",
+                res.epoch_t[k], a[0], a[1], a[2], b[0], b[1], b[2], sm.robot_err[k]
+            );
+        }
+        let p = d.join(format!("mrclam_robot{robot}_smoothed_trajectory.csv"));
+        std::fs::write(&p, s).map_err(io_err(&p))?;
+        let mut m = String::from("landmark_subject,x,y,true_x,true_y\n");
+        for (id, xy) in &sm.map {
+            let t = run
+                .landmarks
+                .iter()
+                .find(|(i, _)| i == id)
+                .map_or([f64::NAN; 2], |l| l.1);
+            let _ = writeln!(
+                m,
+                "{},{:.4},{:.4},{:.4},{:.4}",
+                id.0 + 6,
+                xy[0],
+                xy[1],
+                t[0],
+                t[1]
+            );
+        }
+        let p = d.join(format!("mrclam_robot{robot}_smoothed_map.csv"));
+        std::fs::write(&p, m).map_err(io_err(&p))?;
+    }
     let mut tr = String::from("t,track,x,y,vx,vy,existence\n");
     for r in &res.tracks {
         let _ = writeln!(
@@ -1350,18 +1532,26 @@ fn write_mrclam_outputs(
         &d.join(format!("mrclam_robot{robot}.png")),
         run,
         res,
+        smoothed,
         &format!(
-            "MRCLAM robot {robot}, seed {seed}: Vicon dashed black, estimate red, tracks dots; landmarks x true, dot estimated"
+            "MRCLAM robot {robot}, seed {seed}: Vicon dashed black, filter red{}, tracks dots; landmarks x true, dot estimated",
+            if smoothed.is_some() {
+                ", smoothed blue"
+            } else {
+                ""
+            }
         ),
     )
 }
 
-/// The estimate over the Vicon truth: robot truth dashed, estimate solid, target tracks as dots,
-/// true landmarks as crosses, estimated landmarks as filled dots.
+/// The estimate over the Vicon truth: robot truth dashed, estimate solid (the smoothed one in
+/// blue when there is one), target tracks as dots, true landmarks as crosses, estimated
+/// landmarks as filled dots.
 fn plot_mrclam(
     path: &Path,
     run: &quarry_data::mrclam::MrclamRun,
     res: &quarry_repro::slamot::MrclamResult,
+    smoothed: Option<&quarry_repro::slamot::MrclamSmoothed>,
     caption: &str,
 ) -> Result<(), CmdError> {
     crate::fonts::register()?;
@@ -1440,6 +1630,17 @@ fn plot_mrclam(
         let est: Vec<(f64, f64)> = res.robot_est.iter().map(|p| (p[0], p[1])).collect();
         drawn(chart.draw_series(DashedLineSeries::new(truth, 6, 5, BLACK.stroke_width(1))))?;
         drawn(chart.draw_series(LineSeries::new(est, RED.stroke_width(2))))?;
+        if let Some(sm) = smoothed {
+            let est: Vec<(f64, f64)> = sm.robot_est.iter().map(|p| (p[0], p[1])).collect();
+            drawn(chart.draw_series(LineSeries::new(est, BLUE.stroke_width(2))))?;
+            drawn(
+                chart.draw_series(
+                    sm.map
+                        .iter()
+                        .map(|(_, l)| Circle::new((l[0], l[1]), 4, BLUE.filled())),
+                ),
+            )?;
+        }
         root.present().map_err(|x| x.to_string())?;
     }
     save_png(path, buf, w, h)

@@ -6,7 +6,9 @@
 //! - `sim.rs`: [`run_simulated`] / [`run_frames`] (the RBPF), [`run_simulated_ekf`] (the
 //!   baseline), both scored by [`score_frames`] into a [`SimRunResult`]; [`mean_var`],
 //!   [`assign_slots`];
-//! - `mrclam.rs`: [`run_mrclam`] into a [`MrclamResult`], [`mrclam_config`];
+//! - `mrclam.rs`: [`run_mrclam`] into a [`MrclamResult`], [`mrclam_config`], and
+//!   [`smooth_mrclam`] (the forward run refined by the batch smoother) into an
+//!   [`MrclamSmoothed`];
 //! - `score.rs`: the scores shared with the Python peers ([`score_trajectory`] (ATE with and
 //!   without rigid SE(2) alignment), [`score_map`], [`score_targets`] (OSPA / GOSPA));
 //! - here: the frame → [`SlamotObservation`] conversions ([`observation`],
@@ -66,7 +68,9 @@ use quarry_data::mrclam::MrclamFrame;
 use quarry_sim::slamot::SlamotFrame;
 use quarry_trackers::slamot::SlamotObservation;
 
-pub use mrclam::{MrclamResult, TrackRow, mrclam_config, run_mrclam};
+pub use mrclam::{
+    MrclamResult, MrclamSmoothed, TrackRow, mrclam_config, run_mrclam, smooth_mrclam,
+};
 pub use score::{
     MapScore, Se2, TargetEpoch, TrajectoryScore, align_se2, score_map, score_targets,
     score_trajectory,

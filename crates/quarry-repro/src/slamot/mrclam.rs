@@ -8,7 +8,7 @@ use quarry_core::{
     LandmarkId, MultiTargetTracker, Pose2, Stamp, TrackId, TrackReport, TrackStatus, wrap_angle,
 };
 use quarry_data::mrclam::MrclamRun;
-use quarry_trackers::slamot::{DefaultStore, SlamotConfig, SlamotTracker};
+use quarry_trackers::slamot::{DefaultStore, SlamotConfig, SlamotTracker, smooth_run};
 use serde::{Deserialize, Serialize};
 
 use super::score::{MapScore, TrajectoryScore, score_map, score_targets, score_trajectory};
@@ -78,6 +78,97 @@ pub struct MrclamResult {
     /// Weighted mean normalised innovation squared of the landmark updates, per scored epoch
     /// (NaN without a landmark update), with the number of landmark updates (each χ²₂).
     pub landmark_nis: Vec<(f64, usize)>,
+    /// The filter's pose at every observation epoch (every frame with `observe`, with or
+    /// without truth): the starting point of [`smooth_mrclam`].
+    #[serde(skip)]
+    pub epoch_pose: Vec<Pose2>,
+}
+
+/// A forward run refined by the batch smoother ([`smooth_run`]), scored like the filter.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MrclamSmoothed {
+    /// Robot position error per scored epoch (the filter's epochs).
+    pub robot_err: Vec<f64>,
+    /// Smoothed robot trajectory per scored epoch (x, y, θ).
+    pub robot_est: Vec<[f64; 3]>,
+    /// Trajectory scores (as [`MrclamResult::trajectory`]).
+    pub trajectory: TrajectoryScore,
+    /// Mean landmark position error of the smoothed map \[m\].
+    pub map_err: f64,
+    /// Map scores (as [`MrclamResult::map_score`]).
+    pub map_score: MapScore,
+    /// Smoothed landmark map.
+    pub map: Vec<(LandmarkId, [f64; 2])>,
+    /// Estimated odometry calibration: speed scale, turn-rate scale, turn-rate bias \[rad/s\],
+    /// time offset \[s\] (identity values when not estimated).
+    pub calibration: [f64; 4],
+    /// Accepted Levenberg–Marquardt steps.
+    pub iterations: usize,
+    /// Whether the solver converged before its iteration limit.
+    pub converged: bool,
+    /// Landmark detections down-weighted by the Huber loss at the end.
+    pub downweighted: usize,
+    /// Cost before and after.
+    pub cost: (f64, f64),
+    /// Wall-clock milliseconds of the smoothing.
+    pub ms: f64,
+}
+
+/// Refines a forward run ([`run_mrclam`] on the same `run` and `cfg`) with the batch smoother,
+/// starting from the filter's epoch poses and final map; `calibrate` also estimates the
+/// odometry's calibration ([`quarry_trackers::slamot::smoother_config`]).
+pub fn smooth_mrclam(
+    cfg: &SlamotConfig,
+    run: &MrclamRun,
+    forward: &MrclamResult,
+    calibrate: bool,
+) -> Result<MrclamSmoothed> {
+    let start = std::time::Instant::now();
+    let obs: Vec<_> = run.frames.iter().map(mrclam_observation).collect();
+    let s = smooth_run(
+        cfg,
+        run.initial_pose,
+        &obs,
+        Some(&forward.epoch_pose),
+        &forward.map,
+        calibrate,
+    )?;
+    let ms = 1e3 * start.elapsed().as_secs_f64();
+    let mut robot_err = Vec::new();
+    let mut robot_est = Vec::new();
+    let mut robot_true = Vec::new();
+    for (f, &node) in run.frames.iter().filter(|f| f.observe).zip(&s.epoch_nodes) {
+        if let Some(tp) = f.truth.robot {
+            let p = s.result.poses[node];
+            robot_err.push((p.x - tp.x).hypot(p.y - tp.y));
+            robot_est.push([p.x, p.y, p.theta]);
+            robot_true.push([tp.x, tp.y, tp.theta]);
+        }
+    }
+    let map = s.result.landmarks.clone();
+    let mut map_errs = Vec::new();
+    for (id, m) in &map {
+        if let Some((_, t)) = run.landmarks.iter().find(|(i, _)| i == id) {
+            map_errs.push((m[0] - t[0]).hypot(m[1] - t[1]));
+        }
+    }
+    let trajectory = score_trajectory(&robot_est, &robot_true)?;
+    let map_score = score_map(&map, &run.landmarks, trajectory.alignment);
+    let c = s.result.calibration;
+    Ok(MrclamSmoothed {
+        robot_err,
+        robot_est,
+        trajectory,
+        map_err: mean_var(&map_errs).0,
+        map_score,
+        map,
+        calibration: [c.speed_scale, c.turn_scale, c.turn_bias, c.time_offset],
+        iterations: s.result.iterations,
+        converged: s.result.converged,
+        downweighted: s.result.downweighted,
+        cost: (s.result.initial_cost, s.result.final_cost),
+        ms,
+    })
 }
 
 /// The MRCLAM configuration ([`SlamotConfig::mrclam`], the `mrclam` preset) with `particles`
@@ -102,6 +193,7 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
     let mut neff = Vec::new();
     let mut resampled = Vec::new();
     let mut landmark_nis = Vec::new();
+    let mut epoch_pose = Vec::new();
     // (epoch, detection source, assigned slot)
     let mut assoc: Vec<(Option<usize>, Option<TrackId>)> = Vec::new();
     // per epoch: reports and truth
@@ -115,6 +207,7 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             continue;
         }
         let p = tr.pose_estimate();
+        epoch_pose.push(p);
         if let Some(tp) = f.truth.robot {
             robot_err.push((p.x - tp.x).hypot(p.y - tp.y));
             epoch_t.push(f.t);
@@ -262,5 +355,6 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
         neff,
         resampled,
         landmark_nis,
+        epoch_pose,
     })
 }

@@ -17,7 +17,8 @@
 //! Files: `config.rs` ([`SlamotConfig`], its enums and the [`Preset`]s `paper` (= `Default`),
 //! `s1`, `mrclam`), `observation.rs` (the input, [`SlamotObservation`]), `tracker.rs`
 //! ([`SlamotTracker`], the particle set), `particle.rs` (one particle's epoch), `init.rs`
-//! (two-point target initiation, shared with [`ekf_slamot`](crate::ekf_slamot)). The runs on the
+//! (two-point target initiation, shared with [`ekf_slamot`](crate::ekf_slamot)), `smooth.rs`
+//! ([`smooth_run`]: the forward estimate of a recorded run refined by a batch smoother). The runs on the
 //! simulated scenarios S0/S1 and on MRCLAM, with the paper's scores, are in
 //! `quarry_repro::slamot`.
 //!
@@ -69,6 +70,7 @@ mod config;
 mod init;
 mod observation;
 mod particle;
+mod smooth;
 mod tracker;
 
 pub use config::{
@@ -78,4 +80,5 @@ pub use config::{
 pub(crate) use init::{MapPoints, two_point_gaussian, two_point_pairs};
 pub use observation::SlamotObservation;
 pub use particle::{SlamotParticle, TargetSlot};
+pub use smooth::{SmoothedRun, smooth_run, smoother_config};
 pub use tracker::{DefaultStore, EpochStats, FlatStore, SlamotTracker};
