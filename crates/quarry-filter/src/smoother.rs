@@ -119,7 +119,8 @@ pub struct SmootherProblem {
     /// Prior mean of the first node's pose (the gauge; its spread is
     /// [`SmootherConfig::prior_sigma`]).
     pub prior: Pose2,
-    /// The odometry, in time order (intervals must not overlap; gaps mean "no motion").
+    /// The odometry, in time order (intervals must not overlap; gaps between records mean "no
+    /// motion"; before the first record its controls hold, after the last the last's).
     pub steps: Vec<OdometryStep>,
     /// The node times \[s\], strictly increasing; node 0 carries the prior.
     pub node_times: Vec<f64>,
@@ -340,9 +341,25 @@ pub struct Smoothed {
 }
 
 /// Integrates the odometry over `[a, b]` (motion time) with calibration `c`, from the identity.
+/// Before the first record its controls hold, after the last record the last's (a time offset
+/// moves the interval past the record's ends; a robot already moving keeps moving).
 fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration) -> Pose2 {
     let (lo, hi) = (a - c.time_offset, b - c.time_offset);
     let mut p = Pose2::identity();
+    let (Some(first), Some(last)) = (steps.first(), steps.last()) else {
+        return p;
+    };
+    let drive = |p: Pose2, s: &OdometryStep, len: f64| {
+        p.compose(&Pose2::from_unicycle(
+            c.speed_scale * s.v,
+            c.turn_scale * s.omega + c.turn_bias,
+            len,
+        ))
+    };
+    let start = first.t_end - first.dt;
+    if lo < start && hi > lo {
+        p = drive(p, first, hi.min(start) - lo);
+    }
     let mut i = steps.partition_point(|s| s.t_end <= lo);
     while i < steps.len() {
         let s = &steps[i];
@@ -352,13 +369,12 @@ fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration) -> Pose2 {
         }
         let (t0, t1) = (s0.max(lo), s.t_end.min(hi));
         if t1 > t0 {
-            p = p.compose(&Pose2::from_unicycle(
-                c.speed_scale * s.v,
-                c.turn_scale * s.omega + c.turn_bias,
-                t1 - t0,
-            ));
+            p = drive(p, s, t1 - t0);
         }
         i += 1;
+    }
+    if hi > last.t_end && hi > lo {
+        p = drive(p, last, hi - lo.max(last.t_end));
     }
     p
 }
