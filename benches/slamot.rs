@@ -10,6 +10,9 @@
 //!   target detections per epoch, one core (the 10 Hz goal = 100 ms per epoch).
 //! - `slamot_ekf/epoch/dD`: the EKF-SLAMOT baseline on B1's epoch (state dimension D).
 //! - `slamot_b4/threads/T`: B1 at N = 600 with T rayon threads.
+//! - `slamot_smoother/mrclam6_robotK/{plain,calibrated}`: the batch smoother over the whole of
+//!   MRCLAM dataset 6 for robot K = 1, 3 (started from one N = 20 filter run made once outside
+//!   the timing; skipped with a printed reason when `shared/data/mrclam-6` is absent).
 //!
 //! `cargo bench --bench slamot -- --noplot`
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
@@ -267,5 +270,38 @@ fn goal(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, b1, b2, goal, ekf, b4);
+fn smoother(c: &mut Criterion) {
+    let dir = std::env::var_os("QUARRY_SHARED")
+        .map_or_else(
+            || std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared")),
+            std::path::PathBuf::from,
+        )
+        .join("data/mrclam-6");
+    if !dir.join("Barcodes.dat").exists() {
+        eprintln!(
+            "skipping slamot_smoother: no MRCLAM data at {}",
+            dir.display()
+        );
+        return;
+    }
+    let mut g = c.benchmark_group("slamot_smoother");
+    g.sample_size(10);
+    for robot in [1, 3] {
+        let run = quarry::data::mrclam::load(&dir, robot).unwrap();
+        let cfg = quarry::repro::slamot::mrclam_config(20);
+        let fwd = quarry::repro::slamot::run_mrclam(&cfg, &run, 1).unwrap();
+        for (name, calibrate) in [("plain", false), ("calibrated", true)] {
+            g.bench_function(format!("mrclam6_robot{robot}/{name}"), |b| {
+                b.iter(|| {
+                    black_box(
+                        quarry::repro::slamot::smooth_mrclam(&cfg, &run, &fwd, calibrate).unwrap(),
+                    )
+                });
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, b1, b2, goal, ekf, b4, smoother);
 criterion_main!(benches);
