@@ -445,6 +445,9 @@ struct Prepared<'a> {
     cal: Vec<(usize, f64)>,
     /// Information of each odometry factor (node i → i+1).
     omega: Vec<Matrix3<f64>>,
+    /// The odometry integrated between consecutive nodes at the identity calibration (used
+    /// when no calibration parameter is estimated: the odometry factors are then fixed).
+    nominal: Vec<Pose2>,
     prior_info: Matrix3<f64>,
     meas_w: Matrix2<f64>,
 }
@@ -457,7 +460,11 @@ impl Prepared<'_> {
     /// Odometry residual between nodes i and i+1.
     fn odo_residual(&self, s: &State, i: usize, calib: &Calibration) -> Vector3<f64> {
         let t = &self.p.node_times;
-        let d = integrate(&self.p.steps, t[i], t[i + 1], calib);
+        let d = if self.cal.is_empty() {
+            self.nominal[i]
+        } else {
+            integrate(&self.p.steps, t[i], t[i + 1], calib)
+        };
         let (a, b) = (&s.poses[i], &s.poses[i + 1]);
         let (sn, cs) = a.theta.sin_cos();
         let (dx, dy) = (b.x - a.x, b.y - a.y);
@@ -568,14 +575,22 @@ impl Prepared<'_> {
             sys.e[i] += wa * jb;
             sys.gp[i] += wa * e;
             sys.gp[i + 1] += wb * e;
-            // calibration columns: forward differences of the integrated odometry
-            for (col, &(j, _)) in self.cal.iter().enumerate() {
-                let h = if j == 3 { 1e-4 } else { 1e-6 };
-                let mut cp = s.calib;
-                cp.set(j, s.calib.get(j) + h);
-                let ep = self.odo_residual(s, i, &cp);
-                let mut jc = (ep - e) / h;
-                jc[2] = wrap_angle(ep[2] - e[2]) / h;
+            // calibration columns: forward differences of the integrated odometry, one
+            // re-integration per estimated parameter
+            let jcs: Vec<Vector3<f64>> = self
+                .cal
+                .iter()
+                .map(|&(j, _)| {
+                    let h = if j == 3 { 1e-4 } else { 1e-6 };
+                    let mut cp = s.calib;
+                    cp.set(j, s.calib.get(j) + h);
+                    let ep = self.odo_residual(s, i, &cp);
+                    let mut jc = (ep - e) / h;
+                    jc[2] = wrap_angle(ep[2] - e[2]) / h;
+                    jc
+                })
+                .collect();
+            for (col, jc) in jcs.iter().enumerate() {
                 let wjc = w * jc;
                 let gcol = nl2 + col;
                 let ra = ja.transpose() * wjc;
@@ -585,19 +600,8 @@ impl Prepared<'_> {
                     sys.b[(3 * i + 3 + r, gcol)] += rb[r];
                 }
                 sys.gd[gcol] += wjc.dot(&e);
-                for (col2, &(j2, _)) in self.cal.iter().enumerate().skip(col) {
-                    let jc2 = if j2 == j {
-                        jc
-                    } else {
-                        let h2 = if j2 == 3 { 1e-4 } else { 1e-6 };
-                        let mut cp2 = s.calib;
-                        cp2.set(j2, s.calib.get(j2) + h2);
-                        let ep2 = self.odo_residual(s, i, &cp2);
-                        let mut v = (ep2 - e) / h2;
-                        v[2] = wrap_angle(ep2[2] - e[2]) / h2;
-                        v
-                    };
-                    let val = wjc.dot(&jc2);
+                for (col2, jc2) in jcs.iter().enumerate().skip(col) {
+                    let val = wjc.dot(jc2);
                     sys.c[(gcol, nl2 + col2)] += val;
                     if col2 != col {
                         sys.c[(nl2 + col2, gcol)] += val;
@@ -891,6 +895,9 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
             }))?;
         omega.push((inv + inv.transpose()) * 0.5);
     }
+    let nominal = (0..n.saturating_sub(1))
+        .map(|i| integrate(&problem.steps, t[i], t[i + 1], &Calibration::IDENTITY))
+        .collect();
     let ps = cfg.prior_sigma;
     let prep = Prepared {
         p: problem,
@@ -899,6 +906,7 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
         obs_lm,
         cal,
         omega,
+        nominal,
         prior_info: Matrix3::from_diagonal(&Vector3::new(
             1.0 / (ps[0] * ps[0]),
             1.0 / (ps[1] * ps[1]),

@@ -357,6 +357,12 @@ struct MrclamRunScores {
     ospa: f64,
     gospa: f64,
     assoc_accuracy: f64,
+    /// Detections of other robots that no track explained (births, misses).
+    assoc_unassigned: usize,
+    /// Detections of other robots.
+    assoc_detections: usize,
+    /// Target slots created over the run.
+    slots_created: u32,
     epochs: usize,
     resamples: usize,
     neff_mean: f64,
@@ -1137,6 +1143,9 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
             ospa: res.ospa,
             gospa: res.gospa,
             assoc_accuracy: res.assoc_accuracy,
+            assoc_unassigned: res.assoc_unassigned,
+            assoc_detections: res.assoc_per_target.iter().map(|p| p.0).sum(),
+            slots_created: res.slots_created,
             epochs: res.trajectory.epochs,
             resamples,
             neff_mean: finite_mean(res.neff.iter().copied()),

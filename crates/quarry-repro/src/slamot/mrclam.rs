@@ -52,6 +52,9 @@ pub struct MrclamResult {
     pub assoc_accuracy: f64,
     /// Per target robot: its detections and how many were associated correctly.
     pub assoc_per_target: Vec<(usize, usize)>,
+    /// Detections of real robots that no slot explained (β < 0.5 everywhere: births and misses
+    /// of the association), counted as wrong in [`Self::assoc_accuracy`].
+    pub assoc_unassigned: usize,
     /// Slots ever created.
     pub slots_created: u32,
     /// Wall-clock milliseconds per control step.
@@ -276,6 +279,10 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             }
         }
     }
+    let unassigned = assoc
+        .iter()
+        .filter(|(src, slot)| src.is_some() && slot.is_none())
+        .count();
     let tot: usize = per.iter().map(|p| p.0).sum();
     let ok: usize = per.iter().map(|p| p.1).sum();
     // target errors: every confirmed slot mapped to robot r contributes at each epoch
@@ -343,6 +350,7 @@ pub fn run_mrclam(cfg: &SlamotConfig, run: &MrclamRun, filter_seed: u64) -> Resu
             f64::NAN
         },
         assoc_per_target: per,
+        assoc_unassigned: unassigned,
         slots_created: last_slots,
         ms_per_step: 1e3 * el / run.frames.len().max(1) as f64,
         robot_est,
