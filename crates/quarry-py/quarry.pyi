@@ -5,7 +5,7 @@ TypeError (type / dtype) or ValueError (shape, empty, layout, NaN / infinity) na
 Errors of the Rust code are ValueErrors carrying its message.
 """
 from os import PathLike
-from typing import Literal, TypedDict
+from typing import Literal, NotRequired, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -406,6 +406,12 @@ class MrclamResult(TypedDict):
     assoc_accuracy: float
     ate: float
     ms_per_step: float
+    smoothed_est: NotRequired[F64]
+    smoothed_map: NotRequired[F64]
+    smoothed_robot_err: NotRequired[float]
+    smoothed_map_err: NotRequired[float]
+    smoothed_ate: NotRequired[float]
+    calibration: NotRequired[list[float]]
 
 def track_mrclam(
     directory: str | PathLike[str],
@@ -413,6 +419,8 @@ def track_mrclam(
     particles: int = 50,
     seed: int = 0,
     max_frames: int | None = None,
+    smooth: Literal["plain", "calibrated"] | None = None,
 ) -> MrclamResult:
     """The RBPF SLAM + JIPDA tracker of spec 000 on one robot of an MRCLAM dataset directory,
-    scored against Vicon. tracks rows: t, id, x, y, vx, vy, existence."""
+    scored against Vicon. tracks rows: t, id, x, y, vx, vy, existence. With smooth, the run is
+    also refined by the batch smoother (the smoothed_* keys and calibration)."""

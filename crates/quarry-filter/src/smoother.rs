@@ -340,25 +340,25 @@ pub struct Smoothed {
     pub downweighted: usize,
 }
 
-/// Integrates the odometry over `[a, b]` (motion time) with calibration `c`, from the identity.
-/// Before the first record its controls hold, after the last record the last's (a time offset
-/// moves the interval past the record's ends; a robot already moving keeps moving).
-fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration) -> Pose2 {
+/// Calls `f(controls, length)` for every piece of constant calibrated controls that drives the
+/// motion over `[a, b]` (motion time), in order. Before the first record its controls hold,
+/// after the last record the last's (a time offset moves the interval past the record's ends; a
+/// robot already moving keeps moving); gaps between records are no motion.
+fn for_each_piece(
+    steps: &[OdometryStep],
+    a: f64,
+    b: f64,
+    c: &Calibration,
+    mut f: impl FnMut((f64, f64), f64),
+) {
     let (lo, hi) = (a - c.time_offset, b - c.time_offset);
-    let mut p = Pose2::identity();
     let (Some(first), Some(last)) = (steps.first(), steps.last()) else {
-        return p;
+        return;
     };
-    let drive = |p: Pose2, s: &OdometryStep, len: f64| {
-        p.compose(&Pose2::from_unicycle(
-            c.speed_scale * s.v,
-            c.turn_scale * s.omega + c.turn_bias,
-            len,
-        ))
-    };
+    let u = |s: &OdometryStep| (c.speed_scale * s.v, c.turn_scale * s.omega + c.turn_bias);
     let start = first.t_end - first.dt;
     if lo < start && hi > lo {
-        p = drive(p, first, hi.min(start) - lo);
+        f(u(first), hi.min(start) - lo);
     }
     let mut i = steps.partition_point(|s| s.t_end <= lo);
     while i < steps.len() {
@@ -369,13 +369,21 @@ fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration) -> Pose2 {
         }
         let (t0, t1) = (s0.max(lo), s.t_end.min(hi));
         if t1 > t0 {
-            p = drive(p, s, t1 - t0);
+            f(u(s), t1 - t0);
         }
         i += 1;
     }
     if hi > last.t_end && hi > lo {
-        p = drive(p, last, hi - lo.max(last.t_end));
+        f(u(last), hi - lo.max(last.t_end));
     }
+}
+
+/// Integrates the odometry over `[a, b]` (motion time) with calibration `c`, from the identity.
+fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration) -> Pose2 {
+    let mut p = Pose2::identity();
+    for_each_piece(steps, a, b, c, |u, len| {
+        p = p.compose(&Pose2::from_unicycle(u.0, u.1, len));
+    });
     p
 }
 
@@ -388,25 +396,13 @@ fn segment_covariance(
     model: &Unicycle,
     floor: [f64; 2],
 ) -> Matrix3<f64> {
-    let (lo, hi) = (a - c.time_offset, b - c.time_offset);
     let mut x = Vector3::zeros();
     let mut cov = Matrix3::zeros();
-    let mut i = steps.partition_point(|s| s.t_end <= lo);
-    while i < steps.len() {
-        let s = &steps[i];
-        let s0 = s.t_end - s.dt;
-        if s0 >= hi {
-            break;
-        }
-        let (t0, t1) = (s0.max(lo), s.t_end.min(hi));
-        if t1 > t0 {
-            let u = (c.speed_scale * s.v, c.turn_scale * s.omega + c.turn_bias);
-            let f = model.jacobian(&x, &u, t1 - t0);
-            cov = f * cov * f.transpose() + model.process_noise(&x, &u, t1 - t0);
-            x = model.transition(&x, &u, t1 - t0);
-        }
-        i += 1;
-    }
+    for_each_piece(steps, a, b, c, |u, len| {
+        let f = model.jacobian(&x, &u, len);
+        cov = f * cov * f.transpose() + model.process_noise(&x, &u, len);
+        x = model.transition(&x, &u, len);
+    });
     cov + Matrix3::from_diagonal(&Vector3::new(
         floor[0] * floor[0],
         floor[0] * floor[0],

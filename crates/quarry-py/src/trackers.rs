@@ -339,10 +339,14 @@ pub fn track_rgbd<'py>(
 /// the whole run). Returns a dict: `tracks` rows `t, id, x, y, vx, vy, existence` (confirmed
 /// targets at each scored epoch), `robot_est` / `robot_true` `(E, 3)` poses, `epoch_t`, `map`
 /// rows `landmark id, x, y`, and the scores `ospa`, `gospa` (p = 2, c = 1 m), `map_err`,
-/// `assoc_accuracy`, `ate` (aligned trajectory RMSE), `ms_per_step`.
+/// `assoc_accuracy`, `ate` (aligned trajectory RMSE), `ms_per_step`. With `smooth = "plain"`
+/// or `"calibrated"` the run is also refined by the batch smoother
+/// (`quarry_repro::slamot::smooth_mrclam`, as `quarry slamot --smooth`) and the dict gains
+/// `smoothed_est` `(E, 3)`, `smoothed_map` rows, `smoothed_robot_err`, `smoothed_map_err`,
+/// `smoothed_ate` and `calibration` (speed scale, turn-rate scale, turn-rate bias, time offset).
 #[pyfunction]
-#[pyo3(signature = (directory, robot = 1, particles = 50, seed = 0, max_frames = None))]
-#[allow(clippy::needless_pass_by_value)] // pyo3 extracts an owned path
+#[pyo3(signature = (directory, robot = 1, particles = 50, seed = 0, max_frames = None, smooth = None))]
+#[allow(clippy::needless_pass_by_value)] // pyo3 extracts an owned path and string
 pub fn track_mrclam(
     py: Python<'_>,
     directory: std::path::PathBuf,
@@ -350,20 +354,42 @@ pub fn track_mrclam(
     particles: usize,
     seed: u64,
     max_frames: Option<usize>,
+    smooth: Option<String>,
 ) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     use pyo3::types::PyDict;
     if particles == 0 {
         return Err(value_error("particles", "must be at least 1"));
     }
-    let res = py
-        .detach(|| -> Result<quarry_repro::slamot::MrclamResult, String> {
+    let calibrate = match smooth.as_deref() {
+        None => None,
+        Some("plain") => Some(false),
+        Some("calibrated") => Some(true),
+        Some(other) => {
+            return Err(value_error(
+                "smooth",
+                format!("{other:?} (expected None, \"plain\" or \"calibrated\")"),
+            ));
+        }
+    };
+    type Out = (
+        quarry_repro::slamot::MrclamResult,
+        Option<quarry_repro::slamot::MrclamSmoothed>,
+    );
+    let (res, sm) = py
+        .detach(|| -> Result<Out, String> {
             let mut run =
                 quarry_data::mrclam::load(&directory, robot).map_err(|e| e.to_string())?;
             if let Some(n) = max_frames {
                 run.frames.truncate(n);
             }
             let cfg = quarry_repro::slamot::mrclam_config(particles);
-            quarry_repro::slamot::run_mrclam(&cfg, &run, seed).map_err(|e| e.to_string())
+            let res =
+                quarry_repro::slamot::run_mrclam(&cfg, &run, seed).map_err(|e| e.to_string())?;
+            let sm = calibrate
+                .map(|c| quarry_repro::slamot::smooth_mrclam(&cfg, &run, &res, c))
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            Ok((res, sm))
         })
         .map_err(map_err("track_mrclam"))?;
     let out = PyDict::new(py);
@@ -405,6 +431,22 @@ pub fn track_mrclam(
     out.set_item("assoc_accuracy", res.assoc_accuracy)?;
     out.set_item("ate", res.trajectory.ate_rmse_aligned)?;
     out.set_item("ms_per_step", res.ms_per_step)?;
+    if let Some(sm) = sm {
+        out.set_item(
+            "smoothed_est",
+            rows_to_py(py, poses(&sm.robot_est), sm.robot_est.len(), 3)?,
+        )?;
+        let map: Vec<f64> = sm
+            .map
+            .iter()
+            .flat_map(|(id, p)| [f64::from(id.0), p[0], p[1]])
+            .collect();
+        out.set_item("smoothed_map", rows_to_py(py, map, sm.map.len(), 3)?)?;
+        out.set_item("smoothed_robot_err", sm.trajectory.mean)?;
+        out.set_item("smoothed_map_err", sm.map_err)?;
+        out.set_item("smoothed_ate", sm.trajectory.ate_rmse_aligned)?;
+        out.set_item("calibration", sm.calibration.to_vec())?;
+    }
     Ok(out)
 }
 

@@ -1476,25 +1476,8 @@ fn write_mrclam_outputs(
     }
     let p = d.join(format!("mrclam_robot{robot}_trajectory.csv"));
     std::fs::write(&p, s).map_err(io_err(&p))?;
-    let mut m = String::from("landmark_subject,x,y,true_x,true_y\n");
-    for (id, xy) in &res.map {
-        let t = run
-            .landmarks
-            .iter()
-            .find(|(i, _)| i == id)
-            .map_or([f64::NAN; 2], |l| l.1);
-        let _ = writeln!(
-            m,
-            "{},{:.4},{:.4},{:.4},{:.4}",
-            id.0 + 6,
-            xy[0],
-            xy[1],
-            t[0],
-            t[1]
-        );
-    }
     let p = d.join(format!("mrclam_robot{robot}_map.csv"));
-    std::fs::write(&p, m).map_err(io_err(&p))?;
+    std::fs::write(&p, map_csv(run, &res.map)).map_err(io_err(&p))?;
     if let Some(sm) = smoothed {
         let mut s = String::from("t,robot_x,robot_y,robot_theta,est_x,est_y,est_theta,err\n");
         for k in 0..sm.robot_est.len().min(res.epoch_t.len()) {
@@ -1507,25 +1490,8 @@ fn write_mrclam_outputs(
         }
         let p = d.join(format!("mrclam_robot{robot}_smoothed_trajectory.csv"));
         std::fs::write(&p, s).map_err(io_err(&p))?;
-        let mut m = String::from("landmark_subject,x,y,true_x,true_y\n");
-        for (id, xy) in &sm.map {
-            let t = run
-                .landmarks
-                .iter()
-                .find(|(i, _)| i == id)
-                .map_or([f64::NAN; 2], |l| l.1);
-            let _ = writeln!(
-                m,
-                "{},{:.4},{:.4},{:.4},{:.4}",
-                id.0 + 6,
-                xy[0],
-                xy[1],
-                t[0],
-                t[1]
-            );
-        }
         let p = d.join(format!("mrclam_robot{robot}_smoothed_map.csv"));
-        std::fs::write(&p, m).map_err(io_err(&p))?;
+        std::fs::write(&p, map_csv(run, &sm.map)).map_err(io_err(&p))?;
     }
     let mut tr = String::from("t,track,x,y,vx,vy,existence\n");
     for r in &res.tracks {
@@ -1551,6 +1517,31 @@ fn write_mrclam_outputs(
             }
         ),
     )
+}
+
+/// A landmark map as CSV: subject number, estimate, truth (NaN where the recording has none).
+fn map_csv(
+    run: &quarry_data::mrclam::MrclamRun,
+    map: &[(quarry_core::LandmarkId, [f64; 2])],
+) -> String {
+    let mut m = String::from("landmark_subject,x,y,true_x,true_y\n");
+    for (id, xy) in map {
+        let t = run
+            .landmarks
+            .iter()
+            .find(|(i, _)| i == id)
+            .map_or([f64::NAN; 2], |l| l.1);
+        let _ = writeln!(
+            m,
+            "{},{:.4},{:.4},{:.4},{:.4}",
+            id.0 + 6,
+            xy[0],
+            xy[1],
+            t[0],
+            t[1]
+        );
+    }
+    m
 }
 
 /// The estimate over the Vicon truth: robot truth dashed, estimate solid (the smoothed one in

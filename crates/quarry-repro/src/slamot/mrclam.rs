@@ -149,12 +149,6 @@ pub fn smooth_mrclam(
         }
     }
     let map = s.result.landmarks.clone();
-    let mut map_errs = Vec::new();
-    for (id, m) in &map {
-        if let Some((_, t)) = run.landmarks.iter().find(|(i, _)| i == id) {
-            map_errs.push((m[0] - t[0]).hypot(m[1] - t[1]));
-        }
-    }
     let trajectory = score_trajectory(&robot_est, &robot_true)?;
     let map_score = score_map(&map, &run.landmarks, trajectory.alignment);
     let c = s.result.calibration;
@@ -162,7 +156,7 @@ pub fn smooth_mrclam(
         robot_err,
         robot_est,
         trajectory,
-        map_err: mean_var(&map_errs).0,
+        map_err: map_score.mean,
         map_score,
         map,
         calibration: [c.speed_scale, c.turn_scale, c.turn_bias, c.time_offset],
