@@ -84,6 +84,10 @@ pub const MAX_LANDMARKS: usize = 2_000;
 /// The most nodes one problem may hold (100 hours of 10-Hz nodes).
 pub const MAX_NODES: usize = 4_000_000;
 
+/// The most entries of the dense border `3 n × (2 L + calibration)` of the linear system
+/// (64 Mi doubles = 512 MiB); a larger problem is refused rather than allocated.
+pub const MAX_BORDER_ENTRIES: usize = 64 << 20;
+
 /// The most Levenberg–Marquardt iterations a configuration may ask for.
 pub const MAX_ITERATIONS: usize = 10_000;
 
@@ -839,7 +843,8 @@ fn check_problem(p: &SmootherProblem) -> Result<(), FilterError> {
 ///
 /// Errors: an empty or non-increasing node list, non-finite or overlapping odometry, a detection
 /// with a non-finite value, a non-positive range or a node index out of range, a starting guess
-/// of the wrong length, more than [`MAX_LANDMARKS`] landmarks, an invalid configuration, or a
+/// of the wrong length, more than [`MAX_LANDMARKS`] landmarks or [`MAX_BORDER_ENTRIES`] border
+/// entries, an invalid configuration, or a
 /// linear system that is not positive definite.
 pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothed, FilterError> {
     cfg.validate()?;
@@ -865,6 +870,17 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
         .iter()
         .map(|o| idx[&o.landmark])
         .collect();
+    let border = 3 * n * (2 * col_of.len() + 4);
+    if border > MAX_BORDER_ENTRIES {
+        return Err(invalid(
+            "problem size",
+            format!(
+                "{n} nodes x {} landmarks need a {border}-entry dense border (at most \
+                 {MAX_BORDER_ENTRIES}); split the recording",
+                col_of.len()
+            ),
+        ));
+    }
     let cal: Vec<(usize, f64)> = cfg
         .calibration
         .sigmas()

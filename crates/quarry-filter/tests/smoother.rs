@@ -365,6 +365,22 @@ fn bad_input_is_a_clear_error() {
             },
             "distinct landmarks",
         ),
+        (
+            // 200 000 nodes x 100 landmarks: a 122-million-entry border, refused
+            SmootherProblem {
+                node_times: (0..200_000).map(f64::from).collect(),
+                observations: (0..100u32)
+                    .map(|l| LandmarkObservation {
+                        node: 1,
+                        landmark: LandmarkId(l),
+                        range: 1.0,
+                        bearing: 0.0,
+                    })
+                    .collect(),
+                ..tiny()
+            },
+            "dense border",
+        ),
     ];
     for (p, needle) in cases {
         let e = smooth(&p, &cfg).unwrap_err().to_string();
