@@ -35,8 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         steps.push(OdometryStep {
             t_end: t,
             dt,
-            v,
-            omega: 1.08 * w,
+            control: (v, 1.08 * w),
         });
         if k % 10 == 0 {
             node_times.push(t);
@@ -74,7 +73,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut dead = Pose2::identity();
     let mut worst_dr = 0.0_f64;
     for (i, s) in problem.steps.iter().enumerate() {
-        dead = dead.compose(&Pose2::from_unicycle(s.v, s.omega, s.dt));
+        dead = dead.compose(&Pose2::from_unicycle(s.control.0, s.control.1, s.dt));
         if (i + 1) % 10 == 0 {
             worst_dr = worst_dr.max(err(&dead, &truth[(i + 1) / 10]));
         }

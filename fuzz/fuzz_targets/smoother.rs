@@ -38,8 +38,7 @@ fuzz_target!(|data: &[u8]| {
             .map(|_| OdometryStep {
                 t_end: next(),
                 dt: next(),
-                v: next(),
-                omega: next(),
+                control: (next(), next()),
             })
             .collect(),
         node_times: (0..n_nodes).map(|_| next()).collect(),

@@ -5,13 +5,14 @@
 //! A forward filter (the RBPF of [`crate::rbpf`], an EKF) fixes each pose when it is reached and
 //! never revisits it: the heading it carried across a stretch without landmarks, or the map frame
 //! it set before the first sighting, stays wrong even when later data show it. A smoother uses
-//! all the data for every pose. This one estimates, from a unicycle odometry record and
-//! range-bearing detections of landmarks with **known identity**:
+//! all the data for every pose. This one estimates, from an odometry record (unicycle or bicycle
+//! controls, [`OdometryModel`]) and range-bearing detections of landmarks with **known
+//! identity**:
 //!
 //! - the robot pose at every *node* (the times the caller chooses, typically the detection
 //!   epochs), each pair of consecutive nodes tied by the odometry integrated between them, with
-//!   the covariance the per-step control noise `diag(σ_v², σ_ω²)` of [`Unicycle`] gives over
-//!   that interval (the same model as the filters, so the same noise values apply);
+//!   the covariance the per-step control noise gives over that interval (the filters'
+//!   [`Unicycle`] and [`Bicycle`] models, so the same noise values apply);
 //! - every landmark's position;
 //! - optionally, the odometry's calibration ([`Calibration`]): a speed scale, a turn-rate scale,
 //!   a turn-rate bias and a time offset between the odometry's stamps and the motion (commanded
@@ -40,7 +41,7 @@
 //! // A robot drives 1 m/s along x for 4 s (odometry at 10 Hz) and sees a landmark at (2, 1)
 //! // from nodes at t = 0, 1, ..., 4 s.
 //! let steps: Vec<OdometryStep> = (1..=40)
-//!     .map(|k| OdometryStep { t_end: 0.1 * k as f64, dt: 0.1, v: 1.0, omega: 0.0 })
+//!     .map(|k| OdometryStep { t_end: 0.1 * k as f64, dt: 0.1, control: (1.0, 0.0) })
 //!     .collect();
 //! let node_times: Vec<f64> = (0..5).map(f64::from).collect();
 //! let observations = (0..5)
@@ -75,7 +76,7 @@ use std::collections::BTreeMap;
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
 use quarry_core::{CoreError, LandmarkId, MotionModel, Pose2, wrap_angle};
 
-use crate::{FilterError, Unicycle};
+use crate::{Bicycle, FilterError, Unicycle};
 
 /// The most landmarks one problem may hold (the dense border of the linear system is
 /// `3 n × 2 L`; beyond this a sparse solver would be needed).
@@ -91,17 +92,68 @@ pub const MAX_BORDER_ENTRIES: usize = 64 << 20;
 /// The most Levenberg–Marquardt iterations a configuration may ask for.
 pub const MAX_ITERATIONS: usize = 10_000;
 
-/// One odometry record: the controls `(v, ω)` held over `[t_end − dt, t_end]`.
+/// One odometry record: the controls held over `[t_end − dt, t_end]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OdometryStep {
     /// End of the interval \[s\].
     pub t_end: f64,
     /// Length of the interval \[s\], ≥ 0.
     pub dt: f64,
-    /// Speed \[m/s\].
-    pub v: f64,
-    /// Turn rate \[rad/s\].
-    pub omega: f64,
+    /// The controls: `(v [m/s], ω [rad/s])` for [`OdometryModel::Unicycle`], `(V [m/s],
+    /// G [rad])` (speed, steering angle) for [`OdometryModel::Bicycle`].
+    pub control: (f64, f64),
+}
+
+/// The robot's motion model (the filters' models of the same names).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum OdometryModel {
+    /// [`Unicycle`]: speed and turn rate, integrated exactly along the arc.
+    #[default]
+    Unicycle,
+    /// [`Bicycle`]: speed and steering angle with this wheelbase \[m\].
+    Bicycle {
+        /// Wheelbase \[m\], > 0.
+        wheelbase: f64,
+    },
+}
+
+/// The motion model with its control noise.
+enum Motion {
+    Unicycle(Unicycle),
+    Bicycle(Bicycle),
+}
+
+impl Motion {
+    fn new(m: OdometryModel, sigma: [f64; 2]) -> Result<Self, FilterError> {
+        Ok(match m {
+            OdometryModel::Unicycle => Self::Unicycle(Unicycle::new(sigma[0], sigma[1])?),
+            OdometryModel::Bicycle { wheelbase } => Self::Bicycle(Bicycle::new(
+                wheelbase,
+                Matrix2::new(sigma[0] * sigma[0], 0.0, 0.0, sigma[1] * sigma[1]),
+            )?),
+        })
+    }
+
+    fn transition(&self, x: &Vector3<f64>, u: &(f64, f64), dt: f64) -> Vector3<f64> {
+        match self {
+            Self::Unicycle(m) => m.transition(x, u, dt),
+            Self::Bicycle(m) => m.transition(x, u, dt),
+        }
+    }
+
+    fn jacobian(&self, x: &Vector3<f64>, u: &(f64, f64), dt: f64) -> Matrix3<f64> {
+        match self {
+            Self::Unicycle(m) => m.jacobian(x, u, dt),
+            Self::Bicycle(m) => m.jacobian(x, u, dt),
+        }
+    }
+
+    fn process_noise(&self, x: &Vector3<f64>, u: &(f64, f64), dt: f64) -> Matrix3<f64> {
+        match self {
+            Self::Unicycle(m) => m.process_noise(x, u, dt),
+            Self::Bicycle(m) => m.process_noise(x, u, dt),
+        }
+    }
 }
 
 /// A range-bearing detection of a landmark of known identity, made at a node.
@@ -137,7 +189,7 @@ pub struct SmootherProblem {
     pub initial_landmarks: Vec<(LandmarkId, [f64; 2])>,
 }
 
-/// The odometry calibration: the motion at time `t` is the unicycle driven by
+/// The odometry calibration: the motion at time `t` is the model driven by
 /// `(speed_scale · v(t − time_offset), turn_scale · ω(t − time_offset) + turn_bias)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Calibration {
@@ -232,10 +284,12 @@ impl CalibrationPrior {
 /// The smoother's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SmootherConfig {
-    /// Speed control noise per odometry step \[m/s\] (as [`Unicycle::sigma_v`]).
-    pub sigma_v: f64,
-    /// Turn-rate control noise per odometry step \[rad/s\] (as [`Unicycle::sigma_omega`]).
-    pub sigma_omega: f64,
+    /// The robot's motion model.
+    pub motion: OdometryModel,
+    /// Control noise per odometry step: standard deviations of the two controls (as
+    /// [`Unicycle::sigma_v`] / [`Unicycle::sigma_omega`], or the square roots of the diagonal of
+    /// [`Bicycle::control_noise`]).
+    pub control_sigma: [f64; 2],
     /// Range noise \[m\].
     pub sigma_range: f64,
     /// Bearing noise \[rad\].
@@ -262,8 +316,8 @@ impl Default for SmootherConfig {
     /// 100 iterations to a relative cost change of 1e-9.
     fn default() -> Self {
         Self {
-            sigma_v: 0.05,
-            sigma_omega: 0.1,
+            motion: OdometryModel::Unicycle,
+            control_sigma: [0.05, 0.1],
             sigma_range: 0.05,
             sigma_bearing: 0.01,
             huber_k: Some(1.345),
@@ -290,8 +344,11 @@ impl SmootherConfig {
                 )))
             }
         };
-        pos("sigma_v", self.sigma_v)?;
-        pos("sigma_omega", self.sigma_omega)?;
+        pos("control_sigma", self.control_sigma[0])?;
+        pos("control_sigma", self.control_sigma[1])?;
+        if let OdometryModel::Bicycle { wheelbase } = self.motion {
+            pos("wheelbase", wheelbase)?;
+        }
         pos("sigma_range", self.sigma_range)?;
         pos("sigma_bearing", self.sigma_bearing)?;
         if let Some(k) = self.huber_k {
@@ -359,7 +416,12 @@ fn for_each_piece(
     let (Some(first), Some(last)) = (steps.first(), steps.last()) else {
         return;
     };
-    let u = |s: &OdometryStep| (c.speed_scale * s.v, c.turn_scale * s.omega + c.turn_bias);
+    let u = |s: &OdometryStep| {
+        (
+            c.speed_scale * s.control.0,
+            c.turn_scale * s.control.1 + c.turn_bias,
+        )
+    };
     let start = first.t_end - first.dt;
     if lo < start && hi > lo {
         f(u(first), hi.min(start) - lo);
@@ -383,12 +445,12 @@ fn for_each_piece(
 }
 
 /// Integrates the odometry over `[a, b]` (motion time) with calibration `c`, from the identity.
-fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration) -> Pose2 {
-    let mut p = Pose2::identity();
+fn integrate(steps: &[OdometryStep], a: f64, b: f64, c: &Calibration, model: &Motion) -> Pose2 {
+    let mut x = Vector3::zeros();
     for_each_piece(steps, a, b, c, |u, len| {
-        p = p.compose(&Pose2::from_unicycle(u.0, u.1, len));
+        x = model.transition(&x, &u, len);
     });
-    p
+    Pose2::new(x[0], x[1], x[2])
 }
 
 /// The covariance of the relative pose over `[a, b]` under the per-step control noise.
@@ -397,7 +459,7 @@ fn segment_covariance(
     a: f64,
     b: f64,
     c: &Calibration,
-    model: &Unicycle,
+    model: &Motion,
     floor: [f64; 2],
 ) -> Matrix3<f64> {
     let mut x = Vector3::zeros();
@@ -445,6 +507,8 @@ struct Prepared<'a> {
     cal: Vec<(usize, f64)>,
     /// Information of each odometry factor (node i → i+1).
     omega: Vec<Matrix3<f64>>,
+    /// The motion model with its control noise.
+    model: Motion,
     /// The odometry integrated between consecutive nodes at the identity calibration (used
     /// when no calibration parameter is estimated: the odometry factors are then fixed).
     nominal: Vec<Pose2>,
@@ -463,7 +527,7 @@ impl Prepared<'_> {
         let d = if self.cal.is_empty() {
             self.nominal[i]
         } else {
-            integrate(&self.p.steps, t[i], t[i + 1], calib)
+            integrate(&self.p.steps, t[i], t[i + 1], calib, &self.model)
         };
         let (a, b) = (&s.poses[i], &s.poses[i + 1]);
         let (sn, cs) = a.theta.sin_cos();
@@ -780,7 +844,11 @@ fn check_problem(p: &SmootherProblem) -> Result<(), FilterError> {
     }
     let mut prev_end = f64::NEG_INFINITY;
     for (k, s) in p.steps.iter().enumerate() {
-        if !(s.t_end.is_finite() && s.dt.is_finite() && s.v.is_finite() && s.omega.is_finite()) {
+        if !(s.t_end.is_finite()
+            && s.dt.is_finite()
+            && s.control.0.is_finite()
+            && s.control.1.is_finite())
+        {
             return Err(FilterError::Core(CoreError::NonFinite {
                 what: "odometry step",
             }));
@@ -888,7 +956,7 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
         .enumerate()
         .filter_map(|(j, s)| s.map(|s| (j, s)))
         .collect();
-    let model = Unicycle::new(cfg.sigma_v, cfg.sigma_omega)?;
+    let model = Motion::new(cfg.motion, cfg.control_sigma)?;
     let t = &problem.node_times;
     let mut omega = Vec::with_capacity(n.saturating_sub(1));
     for i in 0..n.saturating_sub(1) {
@@ -908,7 +976,15 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
         omega.push((inv + inv.transpose()) * 0.5);
     }
     let nominal = (0..n.saturating_sub(1))
-        .map(|i| integrate(&problem.steps, t[i], t[i + 1], &Calibration::IDENTITY))
+        .map(|i| {
+            integrate(
+                &problem.steps,
+                t[i],
+                t[i + 1],
+                &Calibration::IDENTITY,
+                &model,
+            )
+        })
         .collect();
     let ps = cfg.prior_sigma;
     let prep = Prepared {
@@ -919,6 +995,7 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
         cal,
         omega,
         nominal,
+        model,
         prior_info: Matrix3::from_diagonal(&Vector3::new(
             1.0 / (ps[0] * ps[0]),
             1.0 / (ps[1] * ps[1]),
@@ -944,6 +1021,7 @@ pub fn smooth(problem: &SmootherProblem, cfg: &SmootherConfig) -> Result<Smoothe
                 t[i],
                 t[i + 1],
                 &Calibration::IDENTITY,
+                &prep.model,
             ));
             v.push(cur);
         }

@@ -62,8 +62,10 @@ fn drive(start: Pose2, noise: Option<(f64, f64, u64)>, calib: Calibration) -> Dr
         steps.push(OdometryStep {
             t_end: t - calib.time_offset,
             dt,
-            v: v / calib.speed_scale,
-            omega: (w - calib.turn_bias) / calib.turn_scale,
+            control: (
+                v / calib.speed_scale,
+                (w - calib.turn_bias) / calib.turn_scale,
+            ),
         });
         if k % 10 == 0 {
             let node = node_times.len();
@@ -251,8 +253,7 @@ fn tiny() -> SmootherProblem {
         steps: vec![OdometryStep {
             t_end: 1.0,
             dt: 1.0,
-            v: 1.0,
-            omega: 0.0,
+            control: (1.0, 0.0),
         }],
         node_times: vec![0.0, 1.0],
         observations: vec![LandmarkObservation {
@@ -388,7 +389,7 @@ fn bad_input_is_a_clear_error() {
     }
     for bad in [
         SmootherConfig {
-            sigma_v: 0.0,
+            control_sigma: [0.0, 0.1],
             ..cfg
         },
         SmootherConfig {
@@ -455,7 +456,7 @@ proptest! {
     ) {
         let p = SmootherProblem {
             prior: Pose2::identity(),
-            steps: steps.iter().map(|&(t, dt, v, w)| OdometryStep { t_end: t, dt, v, omega: w }).collect(),
+            steps: steps.iter().map(|&(t, dt, v, w)| OdometryStep { t_end: t, dt, control: (v, w) }).collect(),
             node_times: times,
             observations: obs.iter().map(|&(node, l, r, b)| LandmarkObservation {
                 node, landmark: LandmarkId(l), range: r, bearing: b,

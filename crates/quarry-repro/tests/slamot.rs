@@ -689,3 +689,51 @@ fn the_smoother_removes_a_miscalibrated_odometry_that_the_filter_carries() {
     assert!((c.turn_scale - 1.0 / scale).abs() < 0.02, "{c:?}");
     assert!((c.time_offset - lead).abs() < 0.05, "{c:?}");
 }
+
+/// The smoother with the bicycle robot of the paper's S0 (the same model as the particles): over
+/// three truth seeds the smoothed trajectory is closer to the truth than the filter's on average
+/// (measured 0.306 / 0.301 / 0.310 m filter, 0.192 / 0.277 / 0.326 m smoothed: with a 360°
+/// sensor and 49 landmarks the filter is already near its best, and one run is 5 % worse).
+#[test]
+fn smoothing_the_simulated_s0_run_lowers_the_robot_error() {
+    use quarry_trackers::slamot::smooth_run;
+    let scen = SlamotScenarioConfig::s0();
+    let cfg = SlamotConfig::default();
+    let (mut sum_f, mut sum_s) = (0.0, 0.0);
+    for r in 0..3 {
+        let frames = quarry_sim::slamot::simulate(&scen, r).unwrap();
+        let [x, y, th] = scen.robot_init;
+        let start = Pose2::new(x, y, th);
+        let mut tr = SlamotTracker::new(cfg.clone(), start, filter_seed(r, 50)).unwrap();
+        let (mut obs, mut guess, mut truth) = (Vec::new(), Vec::new(), Vec::new());
+        for f in &frames {
+            let o = observation(f);
+            tr.step(Stamp::from_frame(f.k, scen.dt_control), &o)
+                .unwrap();
+            if o.observe {
+                guess.push(tr.pose_estimate());
+                truth.push(f.truth.robot);
+            }
+            obs.push(o);
+        }
+        let s = smooth_run(&cfg, start, &obs, Some(&guess), &tr.map_estimate(), false).unwrap();
+        let err = |p: &[Pose2]| {
+            p.iter()
+                .zip(&truth)
+                .map(|(a, b)| (a.x - b.x).hypot(a.y - b.y))
+                .sum::<f64>()
+                / truth.len() as f64
+        };
+        let smoothed: Vec<Pose2> = s.epoch_nodes.iter().map(|&n| s.result.poses[n]).collect();
+        let (ef, es) = (err(&guess), err(&smoothed));
+        eprintln!("S0 run {r}: filter {ef:.3} m, smoothed {es:.3} m");
+        assert!(s.result.converged);
+        assert!(es < 1.1 * ef, "run {r}: smoothed {es} vs filter {ef}");
+        sum_f += ef;
+        sum_s += es;
+    }
+    assert!(
+        sum_s < 0.95 * sum_f,
+        "smoothed {sum_s} vs filter {sum_f} (sums over 3 runs)"
+    );
+}

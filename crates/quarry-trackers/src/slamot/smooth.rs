@@ -12,8 +12,9 @@
 //! smoothing (their detections barely move the pose: docs/slamot.md, diagnosis item 6); the
 //! tracks stay the filter's.
 //!
-//! Only the unicycle robot ([`RobotMotion::Unicycle`]) is supported, and landmarks must carry
-//! their identity (as SLAMOT's landmark detections always do).
+//! Both robot models are supported ([`RobotMotion::Unicycle`], [`RobotMotion::Bicycle`]: the
+//! smoother integrates the same model as the particles), and landmarks carry their identity
+//! (as SLAMOT's landmark detections always do).
 //!
 //! ```
 //! use quarry_core::{LandmarkId, MultiTargetTracker, Pose2, Stamp};
@@ -49,8 +50,8 @@
 
 use quarry_core::{LandmarkId, Pose2};
 use quarry_filter::smoother::{
-    CalibrationPrior, LandmarkObservation, OdometryStep, Smoothed, SmootherConfig, SmootherProblem,
-    smooth,
+    CalibrationPrior, LandmarkObservation, OdometryModel, OdometryStep, Smoothed, SmootherConfig,
+    SmootherProblem, smooth,
 };
 
 use super::{RobotMotion, SlamotConfig, SlamotObservation};
@@ -72,8 +73,11 @@ pub struct SmoothedRun {
 /// and with `calibrate` the odometry calibration of [`CalibrationPrior::WEAK`].
 pub fn smoother_config(cfg: &SlamotConfig, calibrate: bool) -> SmootherConfig {
     SmootherConfig {
-        sigma_v: cfg.control_noise[0],
-        sigma_omega: cfg.control_noise[1],
+        motion: match cfg.motion {
+            RobotMotion::Unicycle => OdometryModel::Unicycle,
+            RobotMotion::Bicycle { wheelbase } => OdometryModel::Bicycle { wheelbase },
+        },
+        control_sigma: cfg.control_noise,
         sigma_range: cfg.meas_noise[0],
         sigma_bearing: cfg.meas_noise[1],
         calibration: if calibrate {
@@ -93,8 +97,8 @@ pub fn smoother_config(cfg: &SlamotConfig, calibrate: bool) -> SmootherConfig {
 /// from dead reckoning. `guess_map` is the tracker's final map (landmarks it lacks start at their
 /// first detection).
 ///
-/// Errors: a bicycle configuration, a guess of the wrong length, non-finite observations and
-/// everything [`smooth`] refuses.
+/// Errors: a guess of the wrong length, non-finite observations and everything [`smooth`]
+/// refuses.
 pub fn smooth_run(
     cfg: &SlamotConfig,
     initial: Pose2,
@@ -103,12 +107,6 @@ pub fn smooth_run(
     guess_map: &[(LandmarkId, [f64; 2])],
     calibrate: bool,
 ) -> Result<SmoothedRun, TrackerError> {
-    if !matches!(cfg.motion, RobotMotion::Unicycle) {
-        return Err(TrackerError::Config {
-            tracker: "slamot",
-            reason: "smoothing supports the unicycle motion model only".into(),
-        });
-    }
     let epochs = observations.iter().filter(|o| o.observe).count();
     if let Some(g) = guess_poses {
         quarry_core::ensure_len(g.len(), epochs, "guess poses (one per observation epoch)")?;
@@ -130,8 +128,7 @@ pub fn smooth_run(
             steps.push(OdometryStep {
                 t_end: t,
                 dt: o.dt,
-                v: o.odometry.0,
-                omega: o.odometry.1,
+                control: o.odometry,
             });
         }
         if !o.observe {
