@@ -294,6 +294,10 @@ impl FeatureCache<'_> {
     }
 }
 
+/// The SIFT features of one target's ROI: keypoint positions (frame coordinates) and their
+/// quantised descriptors.
+pub type RoiFeatures = (Vec<[f64; 2]>, Vec<SiftDescriptor>);
+
 /// Per-frame region geometry.
 struct RegionGeometry {
     /// Inclusive bounding boxes `[x0, y0, x1, y1]`, by label − 1.
@@ -455,6 +459,111 @@ impl WatershedSiftTracker {
             labels.contains(&seg.labels.data[y as usize * w as usize + x as usize])
         };
         cache.crop(r, keep)
+    }
+
+    /// Step 8's SIFT: the keypoints and descriptors of target `k`'s ROI (its regions ∩ the
+    /// box around its centre); `None` for a target that step 8 skips (occluded, just
+    /// separated, or without regions).
+    fn roi_features(
+        &self,
+        cache: &mut FeatureCache<'_>,
+        seg: &Segmentation,
+        geo: &RegionGeometry,
+        k: usize,
+    ) -> Result<Option<RoiFeatures>, TrackerError> {
+        let tg = &self.targets[k];
+        if tg.occluded || tg.placed || tg.regions.is_empty() {
+            return Ok(None);
+        }
+        let labels: Vec<u32> = tg.regions.iter().map(|r| r.label).collect();
+        let clip = self.roi_clip(tg.centre);
+        Self::features(cache, seg, geo, &labels, Some(clip)).map(Some)
+    }
+
+    /// Step 8's pool update of target `tg` at frame `t` with its ROI's keypoints `pos` and
+    /// descriptors `d` (eqs. 9-11; the first one seeds the pool).
+    fn update_pool(
+        tg: &mut Target,
+        t: u64,
+        pos: &[[f64; 2]],
+        d: Vec<SiftDescriptor>,
+    ) -> Result<(), TrackerError> {
+        let c = tg.centre;
+        let offs: Vec<[f64; 2]> = pos.iter().map(|p| [p[0] - c[0], p[1] - c[1]]).collect();
+        if tg.fresh {
+            tg.pool.seed(t, &d, &offs)?;
+            tg.fresh = false;
+        } else {
+            let prevd = std::mem::take(&mut tg.prev_desc);
+            tg.pool.update(t, &d, &offs, &prevd)?;
+        }
+        tg.prev_desc = d;
+        Ok(())
+    }
+
+    /// Bench support (`benches/video_tracker.rs`, not a stable API): step 8's SIFT for the
+    /// last frame's targets, recomputed on `frame` — which must be the last frame given to
+    /// [`step`](MultiTargetTracker::step) — with an empty per-frame crop cache. One entry per
+    /// live target, `None` where step 8 skips it. The crops that steps 4 and 6 described
+    /// earlier in the frame are not included.
+    ///
+    /// Errors: no frame processed yet, or `frame` of another size than the last one.
+    #[doc(hidden)]
+    pub fn stage_roi_features(
+        &self,
+        frame: &Plane<u8>,
+    ) -> Result<Vec<Option<RoiFeatures>>, TrackerError> {
+        let seg = self
+            .front
+            .current()
+            .ok_or_else(|| TrackerError::State("no frame processed yet".into()))?;
+        if seg.labels.dimensions() != frame.dimensions()
+            || frame.data.len() != frame.width as usize * frame.height as usize
+        {
+            return Err(TrackerError::State(format!(
+                "frame of {}x{} for a segmentation of {}x{}",
+                frame.width, frame.height, seg.labels.width, seg.labels.height
+            )));
+        }
+        let geo = RegionGeometry::new(seg);
+        let mut cache = FeatureCache {
+            frame,
+            sift: &self.sift,
+            pad: self.cfg.sift_pad,
+            crops: BTreeMap::new(),
+            us: 0.0,
+        };
+        (0..self.targets.len())
+            .map(|k| self.roi_features(&mut cache, seg, &geo, k))
+            .collect()
+    }
+
+    /// Bench support (not a stable API): step 8's pool updates at frame `t` with the features
+    /// of [`stage_roi_features`](Self::stage_roi_features) (one entry per live target).
+    /// Returns the number of pools updated.
+    ///
+    /// Errors: `features` not one entry per live target, or a pool error.
+    #[doc(hidden)]
+    pub fn stage_pool_updates(
+        &mut self,
+        t: u64,
+        features: Vec<Option<RoiFeatures>>,
+    ) -> Result<usize, TrackerError> {
+        if features.len() != self.targets.len() {
+            return Err(TrackerError::State(format!(
+                "{} feature sets for {} targets",
+                features.len(),
+                self.targets.len()
+            )));
+        }
+        let mut n = 0;
+        for (k, f) in features.into_iter().enumerate() {
+            if let Some((pos, d)) = f {
+                Self::update_pool(&mut self.targets[k], t, &pos, d)?;
+                n += 1;
+            }
+        }
+        Ok(n)
     }
 
     fn roi_clip(&self, c: [f64; 2]) -> [f64; 4] {
@@ -1047,26 +1156,9 @@ impl WatershedSiftTracker {
 
         // ----- step 8: pools -----
         for k in 0..n_all {
-            let (skip, c) = {
-                let tg = &self.targets[k];
-                (tg.occluded || tg.placed || tg.regions.is_empty(), tg.centre)
-            };
-            if skip {
-                continue;
+            if let Some((pos, d)) = self.roi_features(&mut cache, &seg, &geo, k)? {
+                Self::update_pool(&mut self.targets[k], t, &pos, d)?;
             }
-            let labels: Vec<u32> = self.targets[k].regions.iter().map(|r| r.label).collect();
-            let clip = self.roi_clip(c);
-            let (pos, d) = Self::features(&mut cache, &seg, &geo, &labels, Some(clip))?;
-            let offs: Vec<[f64; 2]> = pos.iter().map(|p| [p[0] - c[0], p[1] - c[1]]).collect();
-            let tg = &mut self.targets[k];
-            if tg.fresh {
-                tg.pool.seed(t, &d, &offs)?;
-                tg.fresh = false;
-            } else {
-                let prevd = std::mem::take(&mut tg.prev_desc);
-                tg.pool.update(t, &d, &offs, &prevd)?;
-            }
-            tg.prev_desc = d;
         }
         let sift_us = cache.us;
 
