@@ -314,19 +314,33 @@ struct RegionGeometry {
 }
 
 impl RegionGeometry {
+    /// One pass over the label image by runs of equal labels along each row (a region's
+    /// pixels come in long runs, so this touches each region's box a few times per row
+    /// instead of once per pixel, with no division per pixel).
     fn new(seg: &Segmentation) -> Self {
         let mut bbox = vec![[u32::MAX, u32::MAX, 0, 0]; seg.n_regions()];
         let w = seg.labels.width as usize;
-        for (i, &l) in seg.labels.data.iter().enumerate() {
-            if l == 0 {
-                continue;
+        if w == 0 {
+            return Self { bbox };
+        }
+        for (y, row) in seg.labels.data.chunks_exact(w).enumerate() {
+            let y = y as u32;
+            let mut x = 0;
+            while x < row.len() {
+                let (l, start) = (row[x], x);
+                while x < row.len() && row[x] == l {
+                    x += 1;
+                }
+                if l == 0 {
+                    continue;
+                }
+                if let Some(b) = bbox.get_mut(l as usize - 1) {
+                    b[0] = b[0].min(start as u32);
+                    b[1] = b[1].min(y);
+                    b[2] = b[2].max((x - 1) as u32);
+                    b[3] = b[3].max(y);
+                }
             }
-            let (x, y) = ((i % w) as u32, (i / w) as u32);
-            let b = &mut bbox[l as usize - 1];
-            b[0] = b[0].min(x);
-            b[1] = b[1].min(y);
-            b[2] = b[2].max(x);
-            b[3] = b[3].max(y);
         }
         Self { bbox }
     }
@@ -622,7 +636,8 @@ impl WatershedSiftTracker {
         let t_bg = tb.elapsed().as_secs_f64() * 1e6;
         let t = stamp.frame.0;
         self.frames += 1;
-        let (Some(seg), Some(prev), Some(map)) = (
+        // the previous segmentation exists exactly when the mapping does (not the first frame)
+        let (Some(seg), Some(_), Some(map)) = (
             self.front.current(),
             self.front.previous(),
             self.front.mapping(),
@@ -645,7 +660,6 @@ impl WatershedSiftTracker {
         };
         // clones keep the borrow checker simple; the segmentations are a few MB
         let seg = seg.clone();
-        let prev = prev.clone();
         let map = map.clone();
         let t1 = Instant::now();
         let adj = RegionAdjacency::from_segmentation(&seg)?;
@@ -821,7 +835,6 @@ impl WatershedSiftTracker {
         };
         let old_regions: Vec<Vec<RegionRef>> =
             self.targets.iter().map(|t| t.regions.clone()).collect();
-        let _ = &prev;
         for k in 0..n_t {
             if self.targets[k].placed {
                 claims[k].clone_from(&self.targets[k].regions);
