@@ -261,6 +261,25 @@ pub struct WatershedSiftConfig {
     /// static background cannot belong to a target. Spec §2.10 makes SIFT the largest cost,
     /// and most fragments are background ("SIFT only where needed").
     pub fg_skip_background: bool,
+    /// People walking side by side \[ext, ours; `robust`: true; needs `fg_box`\]: when the
+    /// foreground a target's box is fitted to is as wide as two people at the fitted height
+    /// and has a gap between two person-high parts, the target's box is fitted to its own part
+    /// only, and after `birth_frames` consecutive such frames a *companion* target with its
+    /// own identity is reported on the other part for as long as the pair lasts. Two people
+    /// closer than about 2σ blur into one minimum and one basin, so the paper's machinery
+    /// sees one target (on PETS09-S2L1 a pair walks side by side for 160 frames: about a
+    /// quarter of the ground-truth boxes, docs/video-tracker.md, diagnosis 4). No new number:
+    /// a pair is at least `fg_max_aspect` + 1/`fg_max_scale` typical widths wide (the widest
+    /// single person plus the narrowest one, at the fitted height), each part at least
+    /// 1/`fg_max_scale` typical widths wide with a column holding half the fitted height (a
+    /// person's torso, not a bag or a shadow), the gap column under half the lower part's
+    /// peak; the companion is created only if the other part moved with the target's part
+    /// over those frames (a ghost left in the background stays put), and it keeps to the part
+    /// nearer its last place. A companion holds no watershed region (it has none of its own:
+    /// that is the failure), takes no part in steps 1-8, is not reported while its pair is
+    /// not seen and ends `lost_frames` frames after that; `min_new_separation` counts its
+    /// centre, so a moving point on its person starts no second target while it lives.
+    pub fg_pairs: bool,
     /// Smallest uncovered foreground blob for a birth, as a fraction of w·h [ours, `robust`:
     /// 0.3 — a silhouette fills about 60 % of its box; half of it must be uncovered].
     pub birth_min_frac: f64,
@@ -332,6 +351,7 @@ impl WatershedSiftConfig {
             births_wait_for_occluded: false,
             occluded_hold_located: false,
             fg_skip_background: false,
+            fg_pairs: false,
             birth_min_frac: 0.3,
             birth_frames: 3,
         }
@@ -355,6 +375,7 @@ impl WatershedSiftConfig {
             births_wait_for_occluded: true,
             occluded_hold_located: true,
             fg_skip_background: true,
+            fg_pairs: true,
             bg_selective: true,
             stuck_needs_no_fg: true,
             ..Self::paper()

@@ -72,14 +72,7 @@ impl MotionFrontEnd {
                 frame.width, frame.height, c.labels.width, c.labels.height
             )));
         }
-        let seg = match self.polarity {
-            Polarity::Dark => self.segmenter.run(frame)?.segmentation,
-            Polarity::Bright => {
-                let top = (self.segmenter.levels.saturating_sub(1)).min(255) as u8;
-                let inv = frame.map(|&v| top.saturating_sub(v));
-                self.segmenter.run(&inv)?.segmentation
-            }
-        };
+        let seg = self.segment(frame)?;
         if let (Some(prev), Some(tr)) = (&self.current, &mut self.trajectories) {
             let map = RegionMapping::new(prev, &seg)?;
             tr.advance(&map, &seg)?;
@@ -94,6 +87,22 @@ impl MotionFrontEnd {
         };
         self.previous = self.current.replace(seg);
         Ok(())
+    }
+
+    /// The segmentation stage alone: ramp, blur, minima and watershed of `frame` in the
+    /// front end's polarity, without touching the front end's state (what [`step`](Self::step)
+    /// runs first; the per-stage bench times it on its own).
+    ///
+    /// Errors: a frame smaller than 2×2 or pixels at or above `levels`.
+    pub fn segment(&self, frame: &Plane<u8>) -> Result<Segmentation, TrackerError> {
+        Ok(match self.polarity {
+            Polarity::Dark => self.segmenter.run(frame)?.segmentation,
+            Polarity::Bright => {
+                let top = (self.segmenter.levels.saturating_sub(1)).min(255) as u8;
+                let inv = frame.map(|&v| top.saturating_sub(v));
+                self.segmenter.run(&inv)?.segmentation
+            }
+        })
     }
 
     /// The last frame's segmentation.

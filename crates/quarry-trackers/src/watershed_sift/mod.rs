@@ -50,6 +50,6 @@ pub use config::{
 };
 pub use frontend::MotionFrontEnd;
 pub use tracker::{
-    FrameDiagnostics, Provenance, RegionRef, StageTimes, Target, TargetDiagnostics,
+    FrameDiagnostics, Provenance, RegionRef, RoiFeatures, StageTimes, Target, TargetDiagnostics,
     WatershedSiftTracker, mapping_counts,
 };

@@ -94,6 +94,12 @@ pub struct Target {
     origin: Option<[f64; 2]>,
     /// The centre has been half a box width away from `origin` at some frame.
     moved: bool,
+    /// A companion (`fg_pairs`): the target whose foreground this one's person shares.
+    host: Option<TrackId>,
+    /// Consecutive frames this target's foreground was a pair (`fg_pairs`).
+    pair_streak: usize,
+    /// The centres of the target's part and of the other part when the streak began.
+    pair_first: [[f64; 2]; 2],
 }
 
 impl Target {
@@ -123,6 +129,9 @@ impl Target {
             report: None,
             origin: None,
             moved: false,
+            host: None,
+            pair_streak: 0,
+            pair_first: [[0.0; 2]; 2],
         }
     }
 }
@@ -294,6 +303,10 @@ impl FeatureCache<'_> {
     }
 }
 
+/// The SIFT features of one target's ROI: keypoint positions (frame coordinates) and their
+/// quantised descriptors.
+pub type RoiFeatures = (Vec<[f64; 2]>, Vec<SiftDescriptor>);
+
 /// Per-frame region geometry.
 struct RegionGeometry {
     /// Inclusive bounding boxes `[x0, y0, x1, y1]`, by label − 1.
@@ -301,19 +314,33 @@ struct RegionGeometry {
 }
 
 impl RegionGeometry {
+    /// One pass over the label image by runs of equal labels along each row (a region's
+    /// pixels come in long runs, so this touches each region's box a few times per row
+    /// instead of once per pixel, with no division per pixel).
     fn new(seg: &Segmentation) -> Self {
         let mut bbox = vec![[u32::MAX, u32::MAX, 0, 0]; seg.n_regions()];
         let w = seg.labels.width as usize;
-        for (i, &l) in seg.labels.data.iter().enumerate() {
-            if l == 0 {
-                continue;
+        if w == 0 {
+            return Self { bbox };
+        }
+        for (y, row) in seg.labels.data.chunks_exact(w).enumerate() {
+            let y = y as u32;
+            let mut x = 0;
+            while x < row.len() {
+                let (l, start) = (row[x], x);
+                while x < row.len() && row[x] == l {
+                    x += 1;
+                }
+                if l == 0 {
+                    continue;
+                }
+                if let Some(b) = bbox.get_mut(l as usize - 1) {
+                    b[0] = b[0].min(start as u32);
+                    b[1] = b[1].min(y);
+                    b[2] = b[2].max((x - 1) as u32);
+                    b[3] = b[3].max(y);
+                }
             }
-            let (x, y) = ((i % w) as u32, (i / w) as u32);
-            let b = &mut bbox[l as usize - 1];
-            b[0] = b[0].min(x);
-            b[1] = b[1].min(y);
-            b[2] = b[2].max(x);
-            b[3] = b[3].max(y);
         }
         Self { bbox }
     }
@@ -457,6 +484,111 @@ impl WatershedSiftTracker {
         cache.crop(r, keep)
     }
 
+    /// Step 8's SIFT: the keypoints and descriptors of target `k`'s ROI (its regions ∩ the
+    /// box around its centre); `None` for a target that step 8 skips (occluded, just
+    /// separated, or without regions).
+    fn roi_features(
+        &self,
+        cache: &mut FeatureCache<'_>,
+        seg: &Segmentation,
+        geo: &RegionGeometry,
+        k: usize,
+    ) -> Result<Option<RoiFeatures>, TrackerError> {
+        let tg = &self.targets[k];
+        if tg.occluded || tg.placed || tg.regions.is_empty() {
+            return Ok(None);
+        }
+        let labels: Vec<u32> = tg.regions.iter().map(|r| r.label).collect();
+        let clip = self.roi_clip(tg.centre);
+        Self::features(cache, seg, geo, &labels, Some(clip)).map(Some)
+    }
+
+    /// Step 8's pool update of target `tg` at frame `t` with its ROI's keypoints `pos` and
+    /// descriptors `d` (eqs. 9-11; the first one seeds the pool).
+    fn update_pool(
+        tg: &mut Target,
+        t: u64,
+        pos: &[[f64; 2]],
+        d: Vec<SiftDescriptor>,
+    ) -> Result<(), TrackerError> {
+        let c = tg.centre;
+        let offs: Vec<[f64; 2]> = pos.iter().map(|p| [p[0] - c[0], p[1] - c[1]]).collect();
+        if tg.fresh {
+            tg.pool.seed(t, &d, &offs)?;
+            tg.fresh = false;
+        } else {
+            let prevd = std::mem::take(&mut tg.prev_desc);
+            tg.pool.update(t, &d, &offs, &prevd)?;
+        }
+        tg.prev_desc = d;
+        Ok(())
+    }
+
+    /// Bench support (`benches/video_tracker.rs`, not a stable API): step 8's SIFT for the
+    /// last frame's targets, recomputed on `frame` — which must be the last frame given to
+    /// [`step`](MultiTargetTracker::step) — with an empty per-frame crop cache. One entry per
+    /// live target, `None` where step 8 skips it. The crops that steps 4 and 6 described
+    /// earlier in the frame are not included.
+    ///
+    /// Errors: no frame processed yet, or `frame` of another size than the last one.
+    #[doc(hidden)]
+    pub fn stage_roi_features(
+        &self,
+        frame: &Plane<u8>,
+    ) -> Result<Vec<Option<RoiFeatures>>, TrackerError> {
+        let seg = self
+            .front
+            .current()
+            .ok_or_else(|| TrackerError::State("no frame processed yet".into()))?;
+        if seg.labels.dimensions() != frame.dimensions()
+            || frame.data.len() != frame.width as usize * frame.height as usize
+        {
+            return Err(TrackerError::State(format!(
+                "frame of {}x{} for a segmentation of {}x{}",
+                frame.width, frame.height, seg.labels.width, seg.labels.height
+            )));
+        }
+        let geo = RegionGeometry::new(seg);
+        let mut cache = FeatureCache {
+            frame,
+            sift: &self.sift,
+            pad: self.cfg.sift_pad,
+            crops: BTreeMap::new(),
+            us: 0.0,
+        };
+        (0..self.targets.len())
+            .map(|k| self.roi_features(&mut cache, seg, &geo, k))
+            .collect()
+    }
+
+    /// Bench support (not a stable API): step 8's pool updates at frame `t` with the features
+    /// of [`stage_roi_features`](Self::stage_roi_features) (one entry per live target).
+    /// Returns the number of pools updated.
+    ///
+    /// Errors: `features` not one entry per live target, or a pool error.
+    #[doc(hidden)]
+    pub fn stage_pool_updates(
+        &mut self,
+        t: u64,
+        features: Vec<Option<RoiFeatures>>,
+    ) -> Result<usize, TrackerError> {
+        if features.len() != self.targets.len() {
+            return Err(TrackerError::State(format!(
+                "{} feature sets for {} targets",
+                features.len(),
+                self.targets.len()
+            )));
+        }
+        let mut n = 0;
+        for (k, f) in features.into_iter().enumerate() {
+            if let Some((pos, d)) = f {
+                Self::update_pool(&mut self.targets[k], t, &pos, d)?;
+                n += 1;
+            }
+        }
+        Ok(n)
+    }
+
     fn roi_clip(&self, c: [f64; 2]) -> [f64; 4] {
         let (hw, hh) = (self.cfg.box_w / 2.0, self.cfg.box_h / 2.0);
         [c[0] - hw, c[1] - hh, c[0] + hw, c[1] + hh]
@@ -504,7 +636,8 @@ impl WatershedSiftTracker {
         let t_bg = tb.elapsed().as_secs_f64() * 1e6;
         let t = stamp.frame.0;
         self.frames += 1;
-        let (Some(seg), Some(prev), Some(map)) = (
+        // the previous segmentation exists exactly when the mapping does (not the first frame)
+        let (Some(seg), Some(_), Some(map)) = (
             self.front.current(),
             self.front.previous(),
             self.front.mapping(),
@@ -527,7 +660,6 @@ impl WatershedSiftTracker {
         };
         // clones keep the borrow checker simple; the segmentations are a few MB
         let seg = seg.clone();
-        let prev = prev.clone();
         let map = map.clone();
         let t1 = Instant::now();
         let adj = RegionAdjacency::from_segmentation(&seg)?;
@@ -703,7 +835,6 @@ impl WatershedSiftTracker {
         };
         let old_regions: Vec<Vec<RegionRef>> =
             self.targets.iter().map(|t| t.regions.clone()).collect();
-        let _ = &prev;
         for k in 0..n_t {
             if self.targets[k].placed {
                 claims[k].clone_from(&self.targets[k].regions);
@@ -1047,26 +1178,9 @@ impl WatershedSiftTracker {
 
         // ----- step 8: pools -----
         for k in 0..n_all {
-            let (skip, c) = {
-                let tg = &self.targets[k];
-                (tg.occluded || tg.placed || tg.regions.is_empty(), tg.centre)
-            };
-            if skip {
-                continue;
+            if let Some((pos, d)) = self.roi_features(&mut cache, &seg, &geo, k)? {
+                Self::update_pool(&mut self.targets[k], t, &pos, d)?;
             }
-            let labels: Vec<u32> = self.targets[k].regions.iter().map(|r| r.label).collect();
-            let clip = self.roi_clip(c);
-            let (pos, d) = Self::features(&mut cache, &seg, &geo, &labels, Some(clip))?;
-            let offs: Vec<[f64; 2]> = pos.iter().map(|p| [p[0] - c[0], p[1] - c[1]]).collect();
-            let tg = &mut self.targets[k];
-            if tg.fresh {
-                tg.pool.seed(t, &d, &offs)?;
-                tg.fresh = false;
-            } else {
-                let prevd = std::mem::take(&mut tg.prev_desc);
-                tg.pool.update(t, &d, &offs, &prevd)?;
-            }
-            tg.prev_desc = d;
         }
         let sift_us = cache.us;
 
@@ -1077,7 +1191,7 @@ impl WatershedSiftTracker {
 
         // ----- reported boxes: fixed (paper) or fitted to the foreground \[ext\] -----
         let tf = Instant::now();
-        self.report_boxes(&seg, frame);
+        created += self.report_boxes(&seg, frame, t)?;
         if self.cfg.fg_births {
             created += self.foreground_births(&seg, frame, t)?;
         }
@@ -1130,7 +1244,9 @@ impl WatershedSiftTracker {
         let mut reports = Vec::new();
         for tg in &self.targets {
             let Some(bbox) = tg.report else { continue };
-            if tg.regions.is_empty() || t < tg.born + self.cfg.report_after as u64 {
+            if (tg.regions.is_empty() && tg.host.is_none())
+                || t < tg.born + self.cfg.report_after as u64
+            {
                 continue;
             }
             let mut r = TrackReport::new(
@@ -1191,7 +1307,15 @@ impl WatershedSiftTracker {
     /// with `fg_box` the box fitted to its foreground pixels (see the config docs); a target
     /// without a fit this frame keeps its last fit's offset and size. With `fg_gate` a visible
     /// target without foreground support is not reported and counts towards termination.
-    fn report_boxes(&mut self, seg: &Segmentation, frame: &Plane<u8>) {
+    /// With `fg_pairs` a target whose foreground is a pair side by side is fitted to its own
+    /// part and a companion is reported on the other (see the config docs). Returns the
+    /// number of companions created.
+    fn report_boxes(
+        &mut self,
+        seg: &Segmentation,
+        frame: &Plane<u8>,
+        t: u64,
+    ) -> Result<usize, TrackerError> {
         let mature = self
             .background
             .as_ref()
@@ -1206,7 +1330,7 @@ impl WatershedSiftTracker {
             for tg in &mut self.targets {
                 tg.report = (!tg.regions.is_empty()).then(|| fixed(tg.centre));
             }
-            return;
+            return Ok(0);
         };
         // owners of each label: visible targets, and the members of an occlusion group
         let mut owners: Vec<Vec<usize>> = vec![Vec::new(); seg.n_regions() + 1];
@@ -1222,6 +1346,8 @@ impl WatershedSiftTracker {
         let back = &bg.background().data;
         let thr = cfg.fg_threshold;
         let mut fits: Vec<Option<[f64; 4]>> = vec![None; self.targets.len()];
+        // [ext] fg_pairs: the other person's box, for targets whose foreground is a pair
+        let mut pairs: Vec<Option<[BBox; 2]>> = vec![None; self.targets.len()];
         for (k, tg) in self.targets.iter().enumerate() {
             if tg.regions.is_empty() || tg.occluded {
                 continue;
@@ -1295,6 +1421,42 @@ impl WatershedSiftTracker {
             let wcap = cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh;
             let (cx, fw) = fit_axis(span(&cols, x0), cfg.box_w, tg.centre[0], wcap);
             fits[k] = Some([cx - tg.centre[0], cy - tg.centre[1], fw, fh]);
+            if cfg.fg_pairs
+                && let Some((host, other)) = Self::pair_split(
+                    cfg,
+                    tg.centre,
+                    fh,
+                    (y0, y1),
+                    |x, y| {
+                        let i = y * w + x;
+                        if frame.data[i].abs_diff(back[i]) <= thr {
+                            return None;
+                        }
+                        let o = &owners[seg.labels.data[i] as usize];
+                        let own = o.contains(&k);
+                        (o.is_empty() || own).then_some(own)
+                    },
+                    w,
+                )
+            {
+                // a companion stays on the part nearer its last place
+                let (host, other) = match self.targets.iter().find(|o| o.host == Some(tg.id)) {
+                    Some(cp)
+                        if (host.cx - cp.centre[0]).hypot(host.cy - cp.centre[1])
+                            < (other.cx - cp.centre[0]).hypot(other.cy - cp.centre[1]) =>
+                    {
+                        (other, host)
+                    }
+                    _ => (host, other),
+                };
+                fits[k] = Some([
+                    host.cx - tg.centre[0],
+                    host.cy - tg.centre[1],
+                    host.w,
+                    host.h,
+                ]);
+                pairs[k] = Some([host, other]);
+            }
         }
         let (fg_box, fg_gate) = (cfg.fg_box, cfg.fg_gate);
         for (tg, fit) in self.targets.iter_mut().zip(fits) {
@@ -1324,6 +1486,208 @@ impl WatershedSiftTracker {
                 Some(fixed(tg.centre))
             };
         }
+        if self.cfg.fg_pairs {
+            return self.update_companions(&pairs, t);
+        }
+        Ok(0)
+    }
+
+    /// `fg_pairs`: whether the foreground around a target centred at `c` with fitted height
+    /// `fh` is two people side by side, and if so the boxes of its own part and of the other
+    /// part. `pixel(x, y)` is `None` for a pixel not counted (background, or another target's
+    /// region) and `Some(own)` otherwise; `rows` is the fit window's row range (inclusive) and
+    /// `w` the image width. The window spans a pair's width, `fg_max_aspect` + 1/`fg_max_scale`
+    /// typical widths at `fh`, on each side of `c`, so the pair is inside whether `c` lies on
+    /// one person or between the two.
+    fn pair_split(
+        cfg: &WatershedSiftConfig,
+        c: [f64; 2],
+        fh: f64,
+        rows: (usize, usize),
+        pixel: impl Fn(usize, usize) -> Option<bool>,
+        w: usize,
+    ) -> Option<(BBox, BBox)> {
+        let s = cfg.fg_max_scale;
+        let pw = cfg.box_w / cfg.box_h * fh;
+        let pair_w = (cfg.fg_max_aspect + 1.0 / s) * pw;
+        let clampi = |v: f64| v.clamp(0.0, w as f64 - 1.0) as usize;
+        let (x0, x1) = (
+            clampi((c[0] - pair_w).ceil()),
+            clampi((c[0] + pair_w).floor()),
+        );
+        let (y0, y1) = rows;
+        let (ww, wh) = (x1 - x0 + 1, y1 - y0 + 1);
+        let mut mask = vec![false; ww * wh];
+        let (mut cols, mut cols_own) = (vec![0usize; ww], vec![0usize; ww]);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                if let Some(own) = pixel(x, y) {
+                    mask[(y - y0) * ww + x - x0] = true;
+                    cols[x - x0] += 1;
+                    cols_own[x - x0] += usize::from(own);
+                }
+            }
+        }
+        // trimmed span [a, b) of a histogram, as indices
+        let span = |hist: &[usize]| -> Option<(usize, usize)> {
+            let n: usize = hist.iter().sum();
+            if n == 0 {
+                return None;
+            }
+            let (lo_n, hi_n) = (cfg.fg_trim * n as f64, (1.0 - cfg.fg_trim) * n as f64);
+            let (mut acc, mut lo, mut hi) = (0usize, None, hist.len() - 1);
+            for (i, &v) in hist.iter().enumerate() {
+                acc += v;
+                if lo.is_none() && acc as f64 > lo_n {
+                    lo = Some(i);
+                }
+                if acc as f64 >= hi_n {
+                    hi = i;
+                    break;
+                }
+            }
+            lo.map(|lo| (lo, hi + 1))
+        };
+        let (a, b) = span(&cols)?;
+        if ((b - a) as f64) < pair_w {
+            return None;
+        }
+        // the emptiest column with a part of at least a narrow person on each side
+        let part = (pw / s).ceil() as usize;
+        let mut cut: Option<usize> = None;
+        for k in a + part..b.saturating_sub(part) {
+            if cut.is_none_or(|q| cols[k] < cols[q]) {
+                cut = Some(k);
+            }
+        }
+        let cut = cut?;
+        let peak = |r: std::ops::Range<usize>| cols[r].iter().copied().max().unwrap_or(0);
+        let low = peak(a..cut).min(peak(cut + 1..b)) as f64;
+        if low < 0.5 * fh || cols[cut] as f64 > 0.5 * low {
+            return None;
+        }
+        // each part at most one person wide (a part wider than that is a person and
+        // something else: a third person, or a ghost left in the background)
+        for r in [a..cut, cut + 1..b] {
+            let (ca, cb) = span(&cols[r])?;
+            if (cb - ca) as f64 > cfg.fg_max_aspect * pw {
+                return None;
+            }
+        }
+        // each part's box from its own pixels (sizes bounded as the fit's)
+        let fit_part = |r: std::ops::Range<usize>, near: Option<[f64; 2]>| -> Option<BBox> {
+            let prow: Vec<usize> = (0..wh)
+                .map(|yy| {
+                    mask[yy * ww + r.start..yy * ww + r.end]
+                        .iter()
+                        .filter(|&&m| m)
+                        .count()
+                })
+                .collect();
+            let (ra, rb) = span(&prow)?;
+            let (ca, cb) = span(&cols[r.clone()])?;
+            let (ya, yb) = ((y0 + ra) as f64, (y0 + rb) as f64);
+            let (xa, xb) = ((x0 + r.start + ca) as f64, (x0 + r.start + cb) as f64);
+            let want = near.unwrap_or([f64::midpoint(xa, xb), f64::midpoint(ya, yb)]);
+            let axis = |lo: f64, hi: f64, size: f64, c: f64, cap: f64| -> (f64, f64) {
+                let len = (hi - lo).clamp(size / s, size * s).min(cap.max(size / s));
+                let (l, h) = (lo + len / 2.0, hi - len / 2.0);
+                (
+                    if l <= h {
+                        c.clamp(l, h)
+                    } else {
+                        f64::midpoint(lo, hi)
+                    },
+                    len,
+                )
+            };
+            let (cy, ph) = axis(ya, yb, cfg.box_h, want[1], f64::INFINITY);
+            let cap = cfg.fg_max_aspect * cfg.box_w / cfg.box_h * ph;
+            let (cx, pwid) = axis(xa, xb, cfg.box_w, want[0], cap);
+            Some(BBox {
+                cx,
+                cy,
+                w: pwid,
+                h: ph,
+            })
+        };
+        // the target keeps the part holding more of its own regions' foreground
+        let own_left: usize = cols_own[a..cut].iter().sum();
+        let own_right: usize = cols_own[cut + 1..b].iter().sum();
+        let (mine, other) = if own_left >= own_right {
+            (a..cut, cut + 1..b)
+        } else {
+            (cut + 1..b, a..cut)
+        };
+        Some((fit_part(mine, Some(c))?, fit_part(other, None)?))
+    }
+
+    /// `fg_pairs`: refreshes, creates or hides the companions after this frame's fits;
+    /// `pairs[k]` holds the boxes of target `k`'s part and of the other person (the targets
+    /// before any creation). A companion is created when the pair has lasted `birth_frames`
+    /// frames and the other part moved with the target's part meanwhile (their displacements
+    /// differ by at most half the target's or `still_px`): foreground left behind where a
+    /// person stood while the background warms up (a ghost) stays put.
+    fn update_companions(
+        &mut self,
+        pairs: &[Option<[BBox; 2]>],
+        t: u64,
+    ) -> Result<usize, TrackerError> {
+        let inside = |b: &BBox, p: [f64; 2]| {
+            (p[0] - b.cx).abs() < b.w / 2.0 && (p[1] - b.cy).abs() < b.h / 2.0
+        };
+        let mut created = 0;
+        for (k, pair) in pairs.iter().enumerate() {
+            let id = self.targets[k].id;
+            let companion = self.targets.iter().position(|o| o.host == Some(id));
+            // not where another target (but the host and its companion) is reported
+            let pair = pair.filter(|[_, b]| {
+                !self.targets.iter().any(|o| {
+                    o.id != id
+                        && o.host != Some(id)
+                        && o.report.is_some_and(|r| inside(&r, [b.cx, b.cy]))
+                })
+            });
+            let Some([hb, b]) = pair else {
+                self.targets[k].pair_streak = 0;
+                continue;
+            };
+            let tg = &mut self.targets[k];
+            tg.pair_streak += 1;
+            if tg.pair_streak == 1 {
+                tg.pair_first = [[hb.cx, hb.cy], [b.cx, b.cy]];
+            }
+            if let Some(c) = companion {
+                let cp = &mut self.targets[c];
+                cp.report = Some(b);
+                cp.centre = [b.cx, b.cy];
+                cp.lost = 0;
+                cp.no_fg = 0;
+            } else if tg.pair_streak >= self.cfg.birth_frames {
+                let [h0, o0] = tg.pair_first;
+                let dh = [hb.cx - h0[0], hb.cy - h0[1]];
+                let d_o = [b.cx - o0[0], b.cy - o0[1]];
+                let apart = (d_o[0] - dh[0]).hypot(d_o[1] - dh[1]);
+                if apart > (0.5 * dh[0].hypot(dh[1])).max(self.cfg.still_px) {
+                    tg.pair_streak = 0;
+                    continue;
+                }
+                let cid = TrackId(self.next_id);
+                self.next_id += 1;
+                created += 1;
+                let mut cp = Target::start(
+                    cid,
+                    [b.cx, b.cy],
+                    Vec::new(),
+                    WeightedPool::new(self.cfg.pool_params())?,
+                    t,
+                );
+                cp.host = Some(id);
+                cp.report = Some(b);
+                self.targets.push(cp);
+            }
+        }
+        Ok(created)
     }
 
     /// With `fg_skip_background` and a background of at least 3 samples: per label (index =
@@ -1393,6 +1757,9 @@ impl WatershedSiftTracker {
             .collect();
         // cells whose centre lies in a live target's box are covered
         for tg in &self.targets {
+            if tg.host.is_some() && tg.report.is_none() {
+                continue;
+            }
             let b = tg.report.unwrap_or(BBox {
                 cx: tg.centre[0],
                 cy: tg.centre[1],
