@@ -426,7 +426,10 @@ proptest! {
         x in -20.0..20.0f64, y in -20.0..20.0f64, th in -3.1..3.1f64, seed in 0u64..1000
     ) {
         let d = drive(Pose2::identity(), Some((0.05, 0.01, seed)), Calibration::IDENTITY);
-        let cfg = SmootherConfig { sigma_range: 0.05, ..SmootherConfig::default() };
+        // tolerance 0: iterate until no step lowers the cost, so that both solutions are the
+        // optimum to working precision (LM's damping is not rotation-invariant, so the paths
+        // differ)
+        let cfg = SmootherConfig { sigma_range: 0.05, tolerance: 0.0, ..SmootherConfig::default() };
         let a = smooth(&d.problem, &cfg).unwrap();
         prop_assert!(a.final_cost <= a.initial_cost);
         let t = Pose2::new(x, y, th);
