@@ -273,8 +273,11 @@ pub struct WatershedSiftConfig {
     /// single person plus the narrowest one, at the fitted height), each part at least
     /// 1/`fg_max_scale` typical widths wide with a column holding half the fitted height (a
     /// person's torso, not a bag or a shadow), the gap column under half the lower part's
-    /// peak; the companion is created only if the other part moved with the target's part
-    /// over those frames (a ghost left in the background stays put), and it keeps to the part
+    /// peak; only pixels darker than the background count in this test (every target is a
+    /// dark minimum; the ghost of a walking person in a background model that has not caught
+    /// up trails it like a second person but is brighter than the model);
+    /// the companion is created only if the other part moved with the target's part over
+    /// those frames (a ghost left in the background stays put), and it keeps to the part
     /// nearer its last place. A companion holds no watershed region (it has none of its own:
     /// that is the failure), takes no part in steps 1-8, is not reported while its pair is
     /// not seen and ends `lost_frames` frames after that; `min_new_separation` counts its

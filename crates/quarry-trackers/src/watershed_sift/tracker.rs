@@ -1432,6 +1432,13 @@ impl WatershedSiftTracker {
                         if frame.data[i].abs_diff(back[i]) <= thr {
                             return None;
                         }
+                        // only pixels darker than the background count: every target here
+                        // is a dark minimum, and the ghost a moving person leaves in a
+                        // background model that has not caught up (it trails the person like
+                        // a second one, inside or outside the target's regions) is brighter
+                        if frame.data[i] > back[i] {
+                            return None;
+                        }
                         let o = &owners[seg.labels.data[i] as usize];
                         let own = o.contains(&k);
                         (o.is_empty() || own).then_some(own)
