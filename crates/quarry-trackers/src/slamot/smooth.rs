@@ -89,7 +89,9 @@ pub fn smoother_config(cfg: &SlamotConfig, calibrate: bool) -> SmootherConfig {
     }
 }
 
-/// Smooths a recorded run (see the [module docs](self)).
+/// Smooths a recorded run: the tracker's forward estimate refined by
+/// [`quarry_filter::smoother::smooth`] over the whole recording, with the tracker's noise and
+/// motion model (targets are not smoothed; their tracks stay the filter's).
 ///
 /// `observations` are the tracker's inputs in order, `initial` the start pose the tracker was
 /// anchored at. `guess_poses`, when given, holds the tracker's pose estimate at every observation
