@@ -149,49 +149,31 @@ def main():
         if gt[0, 0] <= te <= gt[-1, 0]:
             epochs_node.append((node, te))
 
-    # initial values
+    # initial values: a forward method's pose at the start and at every new measurement stamp
     if args.init == "ekf":
-        ekf = mp.EkfSlam(init)
+        fwd = mp.EkfSlam(init)
         # the EKF with the same noise as the graph
-        ekf.M = np.diag([sv * sv, sw * sw])
-        ekf.Q = np.diag([sr * sr, sb * sb])
-        poses = [init.copy()]
-        t = run["t0"]
-        u = (0.0, 0.0)
-        last = run["t0"]
-        for te, kind, payload in run["events"]:
-            dt = te - t
-            if dt > 0.0:
-                ekf.propagate(dt, *u)
-                t = te
-            if kind == 0:
-                u = payload
-                continue
-            obs = [(j, r, b) for j, r, b in payload if j is not None]
-            if obs:
-                ekf.update(obs)
-            if te > last:
-                poses.append(ekf.pose())
-                last = te
-        lm_init = ekf.map()
+        fwd.M = np.diag([sv * sv, sw * sw])
+        fwd.Q = np.diag([sr * sr, sb * sb])
     else:
-        poses = [init.copy()]
-        p = init.copy()
-        t = run["t0"]
-        u = (0.0, 0.0)
-        last = run["t0"]
-        for te, kind, payload in run["events"]:
-            dt = te - t
-            if dt > 0.0:
-                p = np.array(mp.unicycle(p[0], p[1], p[2], u[0], u[1], dt), dtype=float)
-                t = te
-            if kind == 0:
-                u = payload
-                continue
-            if te > last:
-                poses.append(p.copy())
-                last = te
-        lm_init = {}
+        fwd = mp.DeadReckoning(init)
+    poses = [init.copy()]
+    t = run["t0"]
+    u = (0.0, 0.0)
+    for te, kind, payload in run["events"]:
+        dt = te - t
+        if dt > 0.0:
+            fwd.propagate(dt, *u)
+            t = te
+        if kind == 0:
+            u = payload
+            continue
+        obs = [(j, r, b) for j, r, b in payload if j is not None]
+        if obs:
+            fwd.update(obs)
+        if len(poses) < len(node_t) and te == node_t[len(poses)]:
+            poses.append(fwd.pose())
+    lm_init = fwd.map()
     values = gtsam.Values()
     for i, p in enumerate(poses):
         values.insert(X(i), gtsam.Pose2(float(p[0]), float(p[1]), float(p[2])))
