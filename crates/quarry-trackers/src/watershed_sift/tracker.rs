@@ -216,7 +216,18 @@ struct FeatureCache<'a> {
     us: f64,
 }
 
-impl FeatureCache<'_> {
+impl<'a> FeatureCache<'a> {
+    /// An empty cache over `frame`.
+    fn new(frame: &'a Plane<u8>, sift: &'a Sift, pad: u32) -> Self {
+        Self {
+            frame,
+            sift,
+            pad,
+            crops: BTreeMap::new(),
+            us: 0.0,
+        }
+    }
+
     /// The scale space of the crop `[x0, y0, x1, y1]` (inclusive).
     fn scale_space(&self, key: [u32; 4]) -> Result<quarry_vision::sift::ScaleSpace, TrackerError> {
         let w = self.frame.width as usize;
@@ -549,13 +560,7 @@ impl WatershedSiftTracker {
             )));
         }
         let geo = RegionGeometry::new(seg);
-        let mut cache = FeatureCache {
-            frame,
-            sift: &self.sift,
-            pad: self.cfg.sift_pad,
-            crops: BTreeMap::new(),
-            us: 0.0,
-        };
+        let mut cache = FeatureCache::new(frame, &self.sift, self.cfg.sift_pad);
         (0..self.targets.len())
             .map(|k| self.roi_features(&mut cache, seg, &geo, k))
             .collect()
@@ -686,13 +691,7 @@ impl WatershedSiftTracker {
         moving.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         let t_map = t1.elapsed().as_secs_f64() * 1e6;
         let t2 = Instant::now();
-        let mut cache = FeatureCache {
-            frame,
-            sift: &self.sift,
-            pad: self.cfg.sift_pad,
-            crops: BTreeMap::new(),
-            us: 0.0,
-        };
+        let mut cache = FeatureCache::new(frame, &self.sift, self.cfg.sift_pad);
         let (w, h) = seg.labels.dimensions();
         let lab = |p: (u32, u32)| seg.labels.data[p.1 as usize * w as usize + p.0 as usize];
         let minimum = |l: u32| seg.minima[l as usize - 1].representative;
