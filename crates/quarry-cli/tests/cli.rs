@@ -323,6 +323,24 @@ fn json_usage_errors_print_one_error_object() {
     assert!(stdout.contains("--gt"));
 }
 
+/// `quarry slamot --smooth` refines a recorded MRCLAM run: without `--mrclam`, or with a mode it
+/// does not know, it is refused before anything runs.
+#[test]
+fn slamot_smooth_needs_a_recording_and_a_known_mode() {
+    let (code, _, stderr) = quarry(&["slamot", "--smooth", "plain"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("--smooth") && stderr.contains("--mrclam"),
+        "{stderr}"
+    );
+    let (code, _, stderr) = quarry(&["slamot", "--smooth", "best"]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(
+        stderr.contains("plain") && stderr.contains("calibrated"),
+        "{stderr}"
+    );
+}
+
 /// `quarry eval`'s thresholds are checked before any file is read, with errors that name the
 /// flag (not an internal parameter such as HOTA's similarity scale).
 #[test]
