@@ -603,6 +603,15 @@ fn measurements_applied_at_their_own_stamp_do_not_bias_the_pose() {
     assert!(own < 0.4 * late, "{own} vs {late}");
 }
 
+/// Mean position distance between two pose sequences of the same length.
+fn mean_position_error(est: &[Pose2], truth: &[Pose2]) -> f64 {
+    est.iter()
+        .zip(truth)
+        .map(|(a, b)| (a.x - b.x).hypot(a.y - b.y))
+        .sum::<f64>()
+        / truth.len() as f64
+}
+
 /// A recording whose odometry over-reads the turn rate by 8 % and leads the motion by 0.2 s (as
 /// MRCLAM's does): the forward filter carries the error, the smoother removes it (with these
 /// frequent sightings the plain smoother too: 0.03 m for both, the filter 0.22 m), and the
@@ -665,13 +674,7 @@ fn the_smoother_removes_a_miscalibrated_odometry_that_the_filter_carries() {
         }
         obs.push(o);
     }
-    let err = |p: &[Pose2]| {
-        p.iter()
-            .zip(&truth)
-            .map(|(a, b)| (a.x - b.x).hypot(a.y - b.y))
-            .sum::<f64>()
-            / truth.len() as f64
-    };
+    let err = |p: &[Pose2]| mean_position_error(p, &truth);
     let filter = err(&guess);
     let map = tr.map_estimate();
     let plain = smooth_run(&cfg, Pose2::identity(), &obs, Some(&guess), &map, false).unwrap();
@@ -717,13 +720,7 @@ fn smoothing_the_simulated_s0_run_lowers_the_robot_error() {
             obs.push(o);
         }
         let s = smooth_run(&cfg, start, &obs, Some(&guess), &tr.map_estimate(), false).unwrap();
-        let err = |p: &[Pose2]| {
-            p.iter()
-                .zip(&truth)
-                .map(|(a, b)| (a.x - b.x).hypot(a.y - b.y))
-                .sum::<f64>()
-                / truth.len() as f64
-        };
+        let err = |p: &[Pose2]| mean_position_error(p, &truth);
         let smoothed: Vec<Pose2> = s.epoch_nodes.iter().map(|&n| s.result.poses[n]).collect();
         let (ef, es) = (err(&guess), err(&smoothed));
         eprintln!("S0 run {r}: filter {ef:.3} m, smoothed {es:.3} m");
