@@ -65,5 +65,6 @@ pub use ekf::{Ekf, Innovation, UpdateForm};
 pub use error::FilterError;
 pub use models::{
     Bicycle, CaNoise, ConstantAcceleration2, ConstantVelocity2, ConstantVelocity3, CvNoise,
-    EgoCvModel, EgoModel, OdomNoise, Position2, Position3, RangeBearing, RangeBearingCv, Unicycle,
+    EgoCvModel, EgoModel, MeanRevertingVelocity2, OdomNoise, Position2, Position3, RangeBearing,
+    RangeBearingCv, Unicycle,
 };

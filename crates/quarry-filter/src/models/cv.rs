@@ -160,6 +160,121 @@ impl MotionModel<6> for ConstantVelocity3 {
     }
 }
 
+/// Planar velocity that reverts to zero (an integrated Ornstein–Uhlenbeck process, also called
+/// a first-order Gauss–Markov velocity), state `[x, y, vx, vy]`. Control: `()`.
+///
+/// Per axis, `dv = −v/τ dt + √(2σ_v²/τ) dW` and `dp = v dt`: the velocity keeps a stationary
+/// standard deviation `sigma_v` and forgets itself over the correlation time `tau`. Unlike a
+/// constant-velocity model, whose position variance grows as Δ³, the position variance of this
+/// one grows as Δ² for Δ ≪ τ and only as `2 σ_v² τ Δ` for Δ ≫ τ, so a target that is not seen
+/// for a long time stays near where it was seen, as slow ground robots and people do. As
+/// τ → ∞ with `2σ_v²/τ = q` it becomes [`ConstantVelocity2::cwna`]`(q)`.
+///
+/// Exact discretisation with `u = 1 − e^{−Δ/τ}`: `p' = p + τ u v`, `v' = (1 − u) v`,
+/// `Q_vv = σ_v² u (2 − u)`, `Q_pv = σ_v² τ u²`, `Q_pp = 2 σ_v² τ² g(Δ/τ)`,
+/// `g(x) = x − u − u²/2` (a power series for small `x`, where that difference cancels).
+///
+/// ```
+/// use nalgebra::Vector4;
+/// use quarry_core::MotionModel;
+/// use quarry_filter::MeanRevertingVelocity2;
+/// let m = MeanRevertingVelocity2::new(0.05, 20.0)?;
+/// let x = m.transition(&Vector4::new(0.0, 0.0, 0.1, 0.0), &(), 20.0);
+/// // the velocity has decayed by e⁻¹; the position moved τ (1 − e⁻¹) v = 1.26 m
+/// assert!((x[2] - 0.1 / std::f64::consts::E).abs() < 1e-12);
+/// assert!((x[0] - 2.0 * (1.0 - (-1f64).exp())).abs() < 1e-12);
+/// // the velocity variance stays at its stationary value σ_v²
+/// let q = m.process_noise(&x, &(), 1e3);
+/// assert!((q[(2, 2)] - 0.05 * 0.05).abs() < 1e-12);
+/// assert!(MeanRevertingVelocity2::new(0.05, 0.0).is_err());
+/// # Ok::<(), quarry_filter::FilterError>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeanRevertingVelocity2 {
+    /// Stationary standard deviation of each velocity component, m/s.
+    pub sigma_v: f64,
+    /// Velocity correlation time τ, s.
+    pub tau: f64,
+}
+
+impl MeanRevertingVelocity2 {
+    /// A model with validated parameters: `sigma_v` finite and ≥ 0, `tau` finite and > 0.
+    pub fn new(sigma_v: f64, tau: f64) -> Result<Self, FilterError> {
+        check_noise("sigma_v", sigma_v)?;
+        if !(tau.is_finite() && tau > 0.0) {
+            return Err(quarry_core::CoreError::invalid(
+                "tau",
+                format!("{tau} (must be finite and > 0)"),
+            )
+            .into());
+        }
+        Ok(Self { sigma_v, tau })
+    }
+
+    /// `u = 1 − e^{−Δ/τ}` (for Δ ≥ 0; a negative Δ runs the model backwards).
+    #[inline]
+    fn u(&self, dt: f64) -> f64 {
+        -(-dt / self.tau).exp_m1()
+    }
+
+    /// The per-axis `(q_pp, q_pv, q_vv)` entries for a step of `dt`.
+    fn blocks(&self, dt: f64) -> (f64, f64, f64) {
+        let s2 = self.sigma_v * self.sigma_v;
+        let x = dt / self.tau;
+        let u = self.u(dt);
+        let g = if x.abs() < 0.5 {
+            // g(x) = Σ_{n≥3} (−1)ⁿ (2 − 2ⁿ⁻¹) xⁿ / n!
+            let mut sum = 0.0;
+            let mut term = x * x / 2.0; // xⁿ / n! at n = 2
+            let mut pow2 = 2.0; // 2ⁿ⁻¹ at n = 2
+            let mut sign = 1.0;
+            for n in 3..=24 {
+                term *= x / n as f64;
+                pow2 *= 2.0;
+                sign = -sign;
+                sum += sign * (2.0 - pow2) * term;
+            }
+            sum
+        } else {
+            x - u - 0.5 * u * u
+        };
+        (
+            2.0 * s2 * self.tau * self.tau * g,
+            s2 * self.tau * u * u,
+            s2 * u * (2.0 - u),
+        )
+    }
+}
+
+impl MotionModel<4> for MeanRevertingVelocity2 {
+    type Control = ();
+    #[inline]
+    fn transition(&self, x: &SVector<f64, 4>, _u: &(), dt: f64) -> SVector<f64, 4> {
+        self.jacobian(x, &(), dt) * x
+    }
+    #[inline]
+    fn jacobian(&self, _x: &SVector<f64, 4>, _u: &(), dt: f64) -> SMatrix<f64, 4, 4> {
+        let u = self.u(dt);
+        let mut f = SMatrix::<f64, 4, 4>::identity();
+        for a in 0..2 {
+            f[(a, 2 + a)] = self.tau * u;
+            f[(2 + a, 2 + a)] = 1.0 - u;
+        }
+        f
+    }
+    fn process_noise(&self, _x: &SVector<f64, 4>, _u: &(), dt: f64) -> SMatrix<f64, 4, 4> {
+        let (qpp, qpv, qvv) = self.blocks(dt);
+        let mut q = SMatrix::<f64, 4, 4>::zeros();
+        for a in 0..2 {
+            q[(a, a)] = qpp;
+            q[(a, 2 + a)] = qpv;
+            q[(2 + a, a)] = qpv;
+            q[(2 + a, 2 + a)] = qvv;
+        }
+        q
+    }
+}
+
 /// Process noise of a constant-acceleration model (per axis).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum CaNoise {
@@ -273,6 +388,54 @@ mod tests {
         assert!((fa * fb - fab).amax() < 1e-15);
         assert!(ConstantVelocity2::dwna(f64::NAN).is_err());
         assert!(ConstantVelocity2::cwna(-1.0).is_err());
+    }
+
+    #[test]
+    fn mean_reverting_velocity_composes_and_tends_to_cwna() {
+        let z = Vector4::zeros();
+        for (sigma, tau) in [(0.05, 25.0), (1.0, 0.3), (0.2, 1e6)] {
+            let m = MeanRevertingVelocity2::new(sigma, tau).unwrap();
+            // the series (x < 0.5) and the closed form agree where they meet and compose:
+            // F(a + b) = F(b) F(a), Q(a + b) = F(b) Q(a) F(b)ᵀ + Q(b)
+            for (a, b) in [
+                (0.1, 0.2),
+                (0.4 * tau, 0.2 * tau),
+                (0.3 * tau, 0.35 * tau),
+                (2.0, 7.0),
+            ] {
+                let (fa, fb, fab) = (
+                    m.jacobian(&z, &(), a),
+                    m.jacobian(&z, &(), b),
+                    m.jacobian(&z, &(), a + b),
+                );
+                assert!(
+                    (fb * fa - fab).amax() <= 1e-12 * fab.amax(),
+                    "{sigma} {tau} {a} {b}"
+                );
+                let (qa, qb, qab) = (
+                    m.process_noise(&z, &(), a),
+                    m.process_noise(&z, &(), b),
+                    m.process_noise(&z, &(), a + b),
+                );
+                let composed = fb * qa * fb.transpose() + qb;
+                assert!(
+                    (composed - qab).amax() <= 1e-12 * qab.amax(),
+                    "{sigma} {tau} {a} {b}: {composed} vs {qab}"
+                );
+                assert!(
+                    nalgebra::Cholesky::new(qab + SMatrix::<f64, 4, 4>::identity() * 1e-300)
+                        .is_some()
+                );
+            }
+        }
+        // τ ≫ Δ: the CWNA model with q = 2 σ² / τ
+        let m = MeanRevertingVelocity2::new(0.2, 1e6).unwrap();
+        let c = ConstantVelocity2::cwna(2.0 * 0.04 / 1e6).unwrap();
+        let (q, qc) = (m.process_noise(&z, &(), 3.0), c.process_noise(&z, &(), 3.0));
+        assert!((q - qc).amax() <= 1e-5 * qc.amax());
+        assert!(MeanRevertingVelocity2::new(f64::NAN, 1.0).is_err());
+        assert!(MeanRevertingVelocity2::new(0.1, f64::INFINITY).is_err());
+        assert!(MeanRevertingVelocity2::new(-0.1, 1.0).is_err());
     }
 
     #[test]

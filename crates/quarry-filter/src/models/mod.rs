@@ -7,6 +7,7 @@
 //! | model | D | control | notes |
 //! |---|---|---|---|
 //! | [`ConstantVelocity2`] | 4 | `()` | `[x, y, vx, vy]`, DWNA or CWNA noise ([`CvNoise`]) |
+//! | [`MeanRevertingVelocity2`] | 4 | `()` | `[x, y, vx, vy]`, velocity reverting to 0 (integrated Ornstein–Uhlenbeck) |
 //! | [`ConstantVelocity3`] | 6 | `()` | `[x, y, z, vx, vy, vz]` |
 //! | [`ConstantAcceleration2`] | 6 | `()` | `[x, y, vx, vy, ax, ay]` ([`CaNoise`]) |
 //! | [`Unicycle`] | 3 | `(v, ω)` | `[x, y, θ]`, exact arc integration, control noise |
@@ -24,7 +25,10 @@ mod ego;
 mod measurement;
 mod unicycle;
 
-pub use cv::{CaNoise, ConstantAcceleration2, ConstantVelocity2, ConstantVelocity3, CvNoise};
+pub use cv::{
+    CaNoise, ConstantAcceleration2, ConstantVelocity2, ConstantVelocity3, CvNoise,
+    MeanRevertingVelocity2,
+};
 pub use ego::{EgoCvModel, EgoModel, OdomNoise};
 pub use measurement::{Position2, Position3, RangeBearing, RangeBearingCv};
 pub use unicycle::{Bicycle, Unicycle, unicycle_delta_jacobian};

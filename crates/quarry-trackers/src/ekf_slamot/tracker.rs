@@ -12,7 +12,7 @@ use quarry_core::{
     Pose2, Stamp, StateEstimate, StateLayout, TrackFlags, TrackId, TrackPrior, TrackReport,
     TrackStatus, wrap_angle,
 };
-use quarry_filter::{Bicycle, ConstantVelocity2, RangeBearing, Unicycle};
+use quarry_filter::{Bicycle, RangeBearing, Unicycle};
 
 use crate::slamot::{
     AssociationMode, MapPoints, RobotMotion, SlamotConfig, SlamotObservation, TargetInit,
@@ -454,7 +454,7 @@ impl EkfSlamot {
         // targets: CV prediction over the elapsed time
         let dt = self.last_target_t.map_or(0.0, |t0| self.t - t0);
         self.last_target_t = Some(self.t);
-        let cv = ConstantVelocity2::dwna(self.cfg.target_sigma_a.max(1e-12))?;
+        let cv = self.cfg.target_model()?;
         let jipda = self.cfg.association == AssociationMode::Jipda;
         let blocks = self.targets.clone();
         for b in &blocks {

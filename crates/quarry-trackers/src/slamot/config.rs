@@ -55,6 +55,56 @@ pub enum RobotMotion {
     Unicycle,
 }
 
+/// Motion model of the targets (each a planar state `[x, y, vx, vy]`).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TargetMotion {
+    /// Constant velocity with discrete white-noise acceleration σ_a = `target_sigma_a`
+    /// (spec §2.6; the paper's).
+    #[default]
+    Dwna,
+    /// Velocity reverting to zero (`quarry_filter::MeanRevertingVelocity2`): each velocity
+    /// component has the stationary standard deviation `sigma_v` and forgets itself over `tau`.
+    /// A target unseen for Δ ≫ τ spreads as a random walk (position variance 2 σ_v² τ Δ) instead
+    /// of a constant-velocity model's Δ³, which suits slow movers seen in short glimpses
+    /// (MRCLAM's robots through a 72° camera). `target_sigma_a` is not used.
+    MeanReverting {
+        /// Stationary standard deviation of each velocity component \[m/s\].
+        sigma_v: f64,
+        /// Velocity correlation time \[s\].
+        tau: f64,
+    },
+}
+
+/// The target motion model a configuration builds (`TargetMotion`, validated).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum TargetModel {
+    Cv(quarry_filter::ConstantVelocity2),
+    MeanReverting(quarry_filter::MeanRevertingVelocity2),
+}
+
+impl quarry_core::MotionModel<4> for TargetModel {
+    type Control = ();
+    fn transition(&self, x: &nalgebra::Vector4<f64>, u: &(), dt: f64) -> nalgebra::Vector4<f64> {
+        match self {
+            Self::Cv(m) => m.transition(x, u, dt),
+            Self::MeanReverting(m) => m.transition(x, u, dt),
+        }
+    }
+    fn jacobian(&self, x: &nalgebra::Vector4<f64>, u: &(), dt: f64) -> nalgebra::Matrix4<f64> {
+        match self {
+            Self::Cv(m) => m.jacobian(x, u, dt),
+            Self::MeanReverting(m) => m.jacobian(x, u, dt),
+        }
+    }
+    fn process_noise(&self, x: &nalgebra::Vector4<f64>, u: &(), dt: f64) -> nalgebra::Matrix4<f64> {
+        match self {
+            Self::Cv(m) => m.process_noise(x, u, dt),
+            Self::MeanReverting(m) => m.process_noise(x, u, dt),
+        }
+    }
+}
+
 /// Where a particle's pose at an observation epoch is drawn from (spec A20).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -196,8 +246,11 @@ pub struct SlamotConfig {
     pub control_noise: [f64; 2],
     /// Measurement noise standard deviations (σ_r \[m\], σ_b \[rad\]) (spec §3.2: 0.1 m, 1°).
     pub meas_noise: [f64; 2],
-    /// Target DWNA acceleration std σ_a [m/s²] (paper's "0.4", A14).
+    /// Target DWNA acceleration std σ_a [m/s²] (paper's "0.4", A14), used by
+    /// `target_motion = dwna`.
     pub target_sigma_a: f64,
+    /// Target motion model (spec §2.6: constant velocity, `dwna`).
+    pub target_motion: TargetMotion,
     /// Association mode (spec A1: `Jpda`).
     pub association: AssociationMode,
     /// Target weight factor (spec A5).
@@ -225,6 +278,12 @@ pub struct SlamotConfig {
     pub confirm_existence: f64,
     /// Existence below which a slot is deleted (0.05).
     pub delete_existence: f64,
+    /// With track management, a slot whose position standard deviation (the square root of
+    /// the largest eigenvalue of its read-out position covariance) exceeds this \[m\] is deleted:
+    /// it no longer says where its target is, and kept it would hold a slot and be reported.
+    /// Stone Soup's `CovarianceBasedDeleter` rule. `None`: existence alone decides (spec).
+    #[serde(with = "opt_f64")]
+    pub delete_sigma: Option<f64>,
     /// Upper bound on simultaneous slots with track management (guards clutter storms).
     pub max_slots: usize,
     /// Resample when N_eff < `neff_threshold` · N (Bailey: 0.75; A21).
@@ -260,6 +319,7 @@ impl Default for SlamotConfig {
             control_noise: [0.3, 0.0872],
             meas_noise: [0.1, 1f64.to_radians()],
             target_sigma_a: 0.4,
+            target_motion: TargetMotion::Dwna,
             association: AssociationMode::Jpda,
             target_weight: TargetWeight::ModeDefault,
             p_detect: 0.99,
@@ -273,6 +333,7 @@ impl Default for SlamotConfig {
             birth_existence: 0.2,
             confirm_existence: 0.9,
             delete_existence: 0.05,
+            delete_sigma: None,
             max_slots: 32,
             neff_threshold: 0.75,
             readout: Readout::WeightedMean,
@@ -310,6 +371,19 @@ impl SlamotConfig {
     /// results on robot 1 of dataset 6 are in-sample and those on robots 2-5 are not. No
     /// landmark gate: on this data a gate turned a heading error into permanent divergence
     /// (docs/slamot.md, "Diagnosis").
+    ///
+    /// The targets (the other robots) are measured too, by `docs/analysis/mrclam_target_stats.py`
+    /// on dataset 6 (docs/slamot.md, "Associating the other robots"):
+    /// - `p_detect` = 0.36: the camera reports a robot that is inside its 6 m / 72° view at 36 %
+    ///   of the observation epochs (3945 of 10 866, pooled over the five observers, 0.27-0.42
+    ///   each; against Vicon). It was 0.8, which deleted a track after 2-4 s in view without a
+    ///   detection and a new one within a second.
+    /// - `target_motion` = mean-reverting, σ_v = 0.043 m/s per axis, τ = 24 s: the robots' own
+    ///   odometry (no Vicon; Vicon agrees within 10 % on σ_v and 15 % on τ). A constant-velocity
+    ///   model let an unseen robot's position σ grow to kilometres and such tracks filled the
+    ///   slots. `sigma_v0` = σ_v: a new track's velocity is drawn from the stationary spread.
+    /// - `delete_sigma` = 1 m (a choice): a track whose position σ passes 1 m, half the ~2 m
+    ///   between robots that meet, is deleted rather than kept as a slot that explains nothing.
     pub fn mrclam() -> Self {
         Self {
             particles: 50,
@@ -317,11 +391,16 @@ impl SlamotConfig {
             control_noise: [0.046, 0.139],
             meas_noise: [0.079, 0.0109],
             target_sigma_a: 0.3,
+            target_motion: TargetMotion::MeanReverting {
+                sigma_v: 0.043,
+                tau: 24.0,
+            },
             association: AssociationMode::Jipda,
             track_management: true,
-            p_detect: 0.8,
+            p_detect: 0.36,
             clutter_density: 0.05 / (5.0 * std::f64::consts::FRAC_PI_3),
-            sigma_v0: 0.3,
+            sigma_v0: 0.043,
+            delete_sigma: Some(1.0),
             max_slots: 12,
             sensor_range: Some(6.0),
             sensor_fov: std::f64::consts::FRAC_PI_3 * 1.2,
@@ -330,6 +409,18 @@ impl SlamotConfig {
             delete_existence: 0.02,
             ..Self::default()
         }
+    }
+
+    /// The target motion model of `target_motion` (and `target_sigma_a`).
+    pub(crate) fn target_model(&self) -> Result<TargetModel, TrackerError> {
+        Ok(match self.target_motion {
+            TargetMotion::Dwna => TargetModel::Cv(quarry_filter::ConstantVelocity2::dwna(
+                self.target_sigma_a.max(1e-12),
+            )?),
+            TargetMotion::MeanReverting { sigma_v, tau } => TargetModel::MeanReverting(
+                quarry_filter::MeanRevertingVelocity2::new(sigma_v, tau)?,
+            ),
+        })
     }
 
     /// Gate threshold γ = χ²₂⁻¹(P_G) = −2 ln(1 − P_G).
@@ -383,6 +474,21 @@ impl crate::TrackerConfig for SlamotConfig {
         }
         if !(self.target_sigma_a.is_finite() && self.target_sigma_a >= 0.0) {
             return fail("target_sigma_a must be finite and >= 0".into());
+        }
+        if let TargetMotion::MeanReverting { sigma_v, tau } = self.target_motion
+            && !(sigma_v.is_finite() && sigma_v > 0.0 && tau.is_finite() && tau > 0.0)
+        {
+            return fail(format!(
+                "target_motion mean-reverting: sigma_v {sigma_v} and tau {tau} must be finite \
+                 and > 0"
+            ));
+        }
+        if let Some(s) = self.delete_sigma
+            && !(s.is_finite() && s > 0.0)
+        {
+            return fail(format!(
+                "delete_sigma {s} must be finite and > 0 (or \"none\")"
+            ));
         }
         for (n, v) in [
             ("p_detect", self.p_detect),
@@ -459,6 +565,56 @@ impl crate::TrackerConfig for SlamotConfig {
 mod tests {
     use super::*;
     use crate::{PresetName, TrackerConfig};
+
+    #[test]
+    fn target_motion_and_delete_sigma_parse_and_validate() {
+        let c: SlamotConfig = toml::from_str(
+            "target_motion = { kind = \"mean-reverting\", sigma_v = 0.05, tau = 10.0 }\n\
+             delete_sigma = 2.0",
+        )
+        .unwrap();
+        assert_eq!(
+            c.target_motion,
+            TargetMotion::MeanReverting {
+                sigma_v: 0.05,
+                tau: 10.0
+            }
+        );
+        assert_eq!(c.delete_sigma, Some(2.0));
+        c.validate().unwrap();
+        let none: SlamotConfig = toml::from_str("delete_sigma = \"none\"").unwrap();
+        assert_eq!(none.delete_sigma, None);
+        for bad in [
+            SlamotConfig {
+                target_motion: TargetMotion::MeanReverting {
+                    sigma_v: 0.05,
+                    tau: 0.0,
+                },
+                ..SlamotConfig::default()
+            },
+            SlamotConfig {
+                target_motion: TargetMotion::MeanReverting {
+                    sigma_v: f64::NAN,
+                    tau: 1.0,
+                },
+                ..SlamotConfig::default()
+            },
+            SlamotConfig {
+                delete_sigma: Some(-1.0),
+                ..SlamotConfig::default()
+            },
+        ] {
+            let e = bad.validate().unwrap_err().to_string();
+            assert!(e.contains("tau") || e.contains("delete_sigma"), "{e}");
+        }
+        assert!(
+            toml::from_str::<SlamotConfig>(
+                "target_motion = { kind = \"mean-reverting\", tau = 1.0 }"
+            )
+            .is_err(),
+            "sigma_v is required"
+        );
+    }
 
     #[test]
     fn every_preset_validates_and_round_trips() {

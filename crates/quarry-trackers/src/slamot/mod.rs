@@ -75,7 +75,7 @@ mod tracker;
 
 pub use config::{
     AssociationMode, MAX_PARTICLES, MapStoreKind, Preset, Proposal, Readout, RobotMotion,
-    SlamotConfig, TargetInit, TargetWeight,
+    SlamotConfig, TargetInit, TargetMotion, TargetWeight,
 };
 pub(crate) use init::{MapPoints, two_point_gaussian, two_point_pairs};
 pub use observation::SlamotObservation;

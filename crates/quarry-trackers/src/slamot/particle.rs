@@ -10,7 +10,7 @@ use quarry_core::{
 };
 use quarry_filter::ekf::{self, MeasurementPrediction};
 use quarry_filter::rbpf::fastslam2;
-use quarry_filter::{ConstantVelocity2, RangeBearing, RangeBearingCv, UpdateForm};
+use quarry_filter::{RangeBearing, RangeBearingCv, UpdateForm};
 
 use super::config::{AssociationMode, Proposal, SlamotConfig, TargetWeight};
 use super::init::{InitPartner, two_point_state};
@@ -57,7 +57,7 @@ pub(super) struct EpochCtx<'a> {
     /// two-point initiation.
     pub(super) init_sel: &'a [(usize, Option<InitPartner>)],
     pub(super) target_dt: f64,
-    pub(super) cv: &'a ConstantVelocity2,
+    pub(super) cv: &'a super::config::TargetModel,
     pub(super) assoc: &'a AssocImpl,
     pub(super) jpda_for_weight: &'a Jpda,
     pub(super) gamma: f64,

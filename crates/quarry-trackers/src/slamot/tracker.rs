@@ -12,7 +12,7 @@ use quarry_core::{
     MultiTargetTracker, Pose2, Resampler, SampledMotion, Stamp, StateEstimate, StateLayout,
     TrackFlags, TrackId, TrackReport, TrackStatus, wrap_angle,
 };
-use quarry_filter::{Bicycle, ConstantVelocity2, RangeBearing, RangeBearingCv, Unicycle};
+use quarry_filter::{Bicycle, RangeBearing, RangeBearingCv, Unicycle};
 use serde::{Deserialize, Serialize};
 
 use super::config::{AssociationMode, Proposal, Readout, RobotMotion, SlamotConfig, TargetInit};
@@ -360,7 +360,7 @@ where
         };
         let init_targets = !init_sel.is_empty();
         let target_dt = self.last_target_t.map_or(0.0, |t0| self.t - t0);
-        let cv = ConstantVelocity2::dwna(cfg.target_sigma_a.max(1e-12))?;
+        let cv = cfg.target_model()?;
         let jpda = Jpda::new(cfg.p_detect, cfg.p_gate, cfg.clutter_density)?;
         let assoc = match cfg.association {
             AssociationMode::Jpda => AssocImpl::Jpda(jpda),
@@ -581,6 +581,17 @@ where
                 .sum();
             if psi < cfg.delete_existence {
                 *k = false;
+            }
+        }
+        if let Some(max_sigma) = cfg.delete_sigma {
+            // the read-out (step 7) holds each slot's weighted position covariance
+            for (k, (_, g, _)) in keep.iter_mut().zip(&self.target_est) {
+                let (a, b, c) = (g.cov[(0, 0)], g.cov[(0, 1)], g.cov[(1, 1)]);
+                let largest = 0.5 * (a + c) + (0.25 * (a - c) * (a - c) + b * b).sqrt();
+                // a NaN spread (cannot happen with validated input) also deletes
+                if largest.is_nan() || largest.sqrt() > max_sigma {
+                    *k = false;
+                }
             }
         }
         let deaths = keep.iter().filter(|k| !**k).count();
@@ -927,6 +938,75 @@ mod tests {
         assert_eq!(ma, mb);
         let (c, _, _) = run(TargetWeight::ModeDefault, true);
         assert_ne!(a, c, "with the target factor the targets move the pose");
+    }
+
+    /// A target out of view keeps its existence while its position spreads. With `delete_sigma`
+    /// its track is deleted once the position σ passes the bound: soon with constant velocity
+    /// (σ grows as Δ^1.5), much later with a mean-reverting velocity (σ grows about as σ_v Δ),
+    /// and never without the rule.
+    #[test]
+    fn delete_sigma_removes_tracks_that_no_longer_localise() {
+        use super::super::config::TargetMotion;
+        let life = |target_motion: TargetMotion, delete_sigma: Option<f64>| -> Option<f64> {
+            let cfg = SlamotConfig {
+                particles: 10,
+                target_motion,
+                delete_sigma,
+                ..SlamotConfig::mrclam()
+            };
+            let mut t = SlamotTracker::new(cfg, Pose2::identity(), 3).unwrap();
+            let (dt, mut theta) = (0.1, 0.0);
+            for k in 1..=3000u64 {
+                let time = k as f64 * dt;
+                // watch the target at (2, 0) for 5 s, then turn to face away from it
+                let w = if time > 5.0 && time <= 5.0 + std::f64::consts::PI {
+                    1.0
+                } else {
+                    0.0
+                };
+                theta += w * dt;
+                let obs = SlamotObservation {
+                    dt,
+                    odometry: (0.0, w),
+                    observe: true,
+                    landmark_obs: vec![(
+                        LandmarkId(1),
+                        [
+                            3.0,
+                            quarry_core::wrap_angle(std::f64::consts::FRAC_PI_2 - theta),
+                        ],
+                    )],
+                    target_obs: if time <= 5.0 {
+                        vec![[2.0, 0.0]]
+                    } else {
+                        vec![]
+                    },
+                };
+                t.step(Stamp::from_frame(k, dt), &obs).unwrap();
+                if time == 5.0 {
+                    assert_eq!(t.target_estimates().len(), 1);
+                    assert!(t.target_estimates()[0].2 > 0.9, "confirmed");
+                }
+                if time > 5.0 && t.target_estimates().is_empty() {
+                    return Some(time);
+                }
+            }
+            None
+        };
+        let cv = life(TargetMotion::Dwna, Some(1.0)).expect("deleted");
+        let mr = TargetMotion::MeanReverting {
+            sigma_v: 0.043,
+            tau: 24.0,
+        };
+        let slow = life(mr, Some(1.0)).expect("deleted");
+        eprintln!("deleted after {cv:.1} s (constant velocity), {slow:.1} s (mean-reverting)");
+        assert!(cv < 15.0, "{cv}");
+        assert!(slow > cv + 10.0, "{slow} vs {cv}");
+        assert_eq!(
+            life(TargetMotion::Dwna, None),
+            None,
+            "existence alone keeps it"
+        );
     }
 
     #[test]
