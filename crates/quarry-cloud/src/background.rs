@@ -489,6 +489,12 @@ impl ChiSquareBackground {
         } else {
             candidate.clone()
         };
+        // the labels of (5)-(6) alone: the relearn rule counts these (see `update_long_term`)
+        let window_static = if self.cfg.long_term.is_some() {
+            is_static.clone()
+        } else {
+            Vec::new()
+        };
         let mut overridden = 0;
         if self.cfg.long_term.is_some() {
             for n in 0..n_beams {
@@ -508,7 +514,7 @@ impl ChiSquareBackground {
                 (Some(_), false) => BeamLabel::Dynamic,
             })
             .collect();
-        self.update_long_term(scan, &is_static);
+        self.update_long_term(scan, &is_static, &window_static);
         // push the scan into the window
         for n in 0..n_beams {
             let slot = n * m + self.head;
@@ -539,7 +545,16 @@ impl ChiSquareBackground {
         Ok(labels)
     }
 
-    fn update_long_term(&mut self, scan: &PolarScan, is_static: &[bool]) {
+    /// `is_static`: the final labels (after the override); `window_static`: the labels of
+    /// (5)-(6) before it.
+    ///
+    /// The relearn run counts only beams that are static *by the window test*. A reading the
+    /// override made static agrees with `b_n`, so it is no evidence that the background moved;
+    /// counted (spec §2.2 read literally: "static" as the final label), a wall seen again after
+    /// a person walked through its beam relearned `b_n` to the window mean, which still held the
+    /// person's ranges, 0.2-0.5 m in front of the wall, and the wall then stayed foreground
+    /// (docs/lidar-people.md, "Background relearn").
+    fn update_long_term(&mut self, scan: &PolarScan, is_static: &[bool], window_static: &[bool]) {
         let Some(lt) = self.cfg.long_term else { return };
         let n_beams = self.table.len();
         let k = self.scans as usize;
@@ -568,12 +583,17 @@ impl ChiSquareBackground {
             }
             let nv = self.n_valid[n] as usize;
             let mean = (2 * nv >= m).then(|| self.sum_mm[n] as f64 * 1e-3 / nv as f64);
-            match (self.background[n], mean) {
-                (Some(b), Some(mean)) if (mean - b).abs() > (3.0 * sigma_d(mean)).max(0.03) => {
-                    self.static_run[n] += 1;
-                }
-                (None, Some(_)) => self.static_run[n] += 1,
-                _ => self.static_run[n] = 0,
+            // static by the override only: b_n is confirmed, not contradicted
+            let away = window_static[n]
+                && match (self.background[n], mean) {
+                    (Some(b), Some(mean)) => (mean - b).abs() > (3.0 * sigma_d(mean)).max(0.03),
+                    (None, Some(_)) => true,
+                    _ => false,
+                };
+            if away {
+                self.static_run[n] += 1;
+            } else {
+                self.static_run[n] = 0;
             }
             if self.static_run[n] >= lt.relearn_scans
                 && let Some(mean) = mean
@@ -940,6 +960,56 @@ mod tests {
             let b = region_constraint_scan(&pts, &cand, delta, inc).unwrap();
             prop_assert_eq!(a, b);
         }
+    }
+
+    /// The relearn run counts only window-test statics. With T_relearn shorter than the window
+    /// (2 s at 10 Hz = 20 scans < m = 40, as on the leg-height recordings), a person crossing
+    /// the beam for 5 scans leaves the window mean 0.46 m in front of the wall for 40 scans
+    /// while the wall itself is static by the override; counted, those scans relearned b_n to
+    /// that mean and the wall came back dynamic. An object that really stays is still learned.
+    #[test]
+    fn a_wall_seen_again_keeps_its_background_and_a_new_object_is_learned() {
+        let mut bg = ChiSquareBackground::new(
+            &one_beam_geometry(),
+            ChiSquareConfig {
+                region_constraint: false,
+                long_term: Some(LongTermConfig {
+                    warm_scans: 100,
+                    relearn_scans: 20,
+                    ..LongTermConfig::default()
+                }),
+                ..ChiSquareConfig::default()
+            },
+        )
+        .unwrap();
+        let mut k = 0u32;
+        let mut next = |bg: &mut ChiSquareBackground, mm: u16| {
+            k += 1;
+            bg.classify_scan(&scan1(k, mm)).unwrap()[0]
+        };
+        for _ in 0..150 {
+            next(&mut bg, 5000);
+        }
+        for _ in 0..5 {
+            assert_eq!(next(&mut bg, 1300), BeamLabel::Dynamic);
+        }
+        for i in 0..80 {
+            assert_eq!(next(&mut bg, 5000), BeamLabel::Static, "wall scan {i}");
+            let b = bg.long_term_background()[0].unwrap();
+            assert!((b - 5.0).abs() < 0.03, "b_n moved to {b} at wall scan {i}");
+        }
+        // a cupboard put in the beam at 3 m: static by the window test once the window holds
+        // it, then learned after 20 such scans
+        let mut learned = None;
+        for i in 0..120 {
+            next(&mut bg, 3000);
+            if (bg.long_term_background()[0].unwrap() - 3.0).abs() < 0.03 {
+                learned = Some(i);
+                break;
+            }
+        }
+        let at = learned.expect("the cupboard became background");
+        assert!((20..=60).contains(&at), "learned after {at} scans");
     }
 
     #[test]
