@@ -962,6 +962,37 @@ mod tests {
         }
     }
 
+    /// One beam of the faithful model (no region constraint) that has seen a wall at 5 m for
+    /// 150 scans.
+    struct OneBeam {
+        bg: ChiSquareBackground,
+        k: u32,
+    }
+
+    impl OneBeam {
+        fn after_a_wall(lt: LongTermConfig) -> Self {
+            let bg = ChiSquareBackground::new(
+                &one_beam_geometry(),
+                ChiSquareConfig {
+                    region_constraint: false,
+                    long_term: Some(lt),
+                    ..ChiSquareConfig::default()
+                },
+            )
+            .unwrap();
+            let mut beam = Self { bg, k: 0 };
+            for _ in 0..150 {
+                beam.next(5000);
+            }
+            beam
+        }
+
+        fn next(&mut self, mm: u16) -> BeamLabel {
+            self.k += 1;
+            self.bg.classify_scan(&scan1(self.k, mm)).unwrap()[0]
+        }
+    }
+
     /// The relearn run counts only window-test statics. With T_relearn shorter than the window
     /// (2 s at 10 Hz = 20 scans < m = 40, as on the leg-height recordings), a person crossing
     /// the beam for 5 scans leaves the window mean 0.46 m in front of the wall for 40 scans
@@ -969,41 +1000,25 @@ mod tests {
     /// that mean and the wall came back dynamic. An object that really stays is still learned.
     #[test]
     fn a_wall_seen_again_keeps_its_background_and_a_new_object_is_learned() {
-        let mut bg = ChiSquareBackground::new(
-            &one_beam_geometry(),
-            ChiSquareConfig {
-                region_constraint: false,
-                long_term: Some(LongTermConfig {
-                    warm_scans: 100,
-                    relearn_scans: 20,
-                    ..LongTermConfig::default()
-                }),
-                ..ChiSquareConfig::default()
-            },
-        )
-        .unwrap();
-        let mut k = 0u32;
-        let mut next = |bg: &mut ChiSquareBackground, mm: u16| {
-            k += 1;
-            bg.classify_scan(&scan1(k, mm)).unwrap()[0]
-        };
-        for _ in 0..150 {
-            next(&mut bg, 5000);
-        }
+        let mut beam = OneBeam::after_a_wall(LongTermConfig {
+            warm_scans: 100,
+            relearn_scans: 20,
+            ..LongTermConfig::default()
+        });
         for _ in 0..5 {
-            assert_eq!(next(&mut bg, 1300), BeamLabel::Dynamic);
+            assert_eq!(beam.next(1300), BeamLabel::Dynamic);
         }
         for i in 0..80 {
-            assert_eq!(next(&mut bg, 5000), BeamLabel::Static, "wall scan {i}");
-            let b = bg.long_term_background()[0].unwrap();
+            assert_eq!(beam.next(5000), BeamLabel::Static, "wall scan {i}");
+            let b = beam.bg.long_term_background()[0].unwrap();
             assert!((b - 5.0).abs() < 0.03, "b_n moved to {b} at wall scan {i}");
         }
         // a cupboard put in the beam at 3 m: static by the window test once the window holds
         // it, then learned after 20 such scans
         let mut learned = None;
         for i in 0..120 {
-            next(&mut bg, 3000);
-            if (bg.long_term_background()[0].unwrap() - 3.0).abs() < 0.03 {
+            beam.next(3000);
+            if (beam.bg.long_term_background()[0].unwrap() - 3.0).abs() < 0.03 {
                 learned = Some(i);
                 break;
             }
@@ -1024,26 +1039,10 @@ mod tests {
                 gated_update: gated,
                 ..LongTermConfig::default()
             };
-            let mut bg = ChiSquareBackground::new(
-                &one_beam_geometry(),
-                ChiSquareConfig {
-                    region_constraint: false,
-                    long_term: Some(lt),
-                    ..ChiSquareConfig::default()
-                },
-            )
-            .unwrap();
-            let mut k = 0u32;
-            let mut next = |bg: &mut ChiSquareBackground, mm: u16| {
-                k += 1;
-                bg.classify_scan(&scan1(k, mm)).unwrap()[0]
-            };
-            for _ in 0..150 {
-                next(&mut bg, 5000);
-            }
+            let mut beam = OneBeam::after_a_wall(lt);
             let mut statics = 0;
             for _ in 0..60 {
-                if next(&mut bg, 3000) == BeamLabel::Static {
+                if beam.next(3000) == BeamLabel::Static {
                     statics += 1;
                 }
             }
@@ -1051,13 +1050,13 @@ mod tests {
                 statics >= 15,
                 "the still person became static {statics} times"
             );
-            let b = bg.long_term_background()[0].unwrap();
+            let b = beam.bg.long_term_background()[0].unwrap();
             if gated {
                 assert!((b - 5.0).abs() < 1e-9, "gated b_n moved to {b}");
             } else {
                 assert!(b < 4.9, "ungated b_n stayed at {b}");
             }
-            assert_eq!(next(&mut bg, 5000) == BeamLabel::Static, expect_static);
+            assert_eq!(beam.next(5000) == BeamLabel::Static, expect_static);
         }
     }
 
