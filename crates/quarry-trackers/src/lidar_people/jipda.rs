@@ -145,9 +145,12 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
                 ex.alpha = d.pose.theta;
                 ex.rms = d.rms;
                 ex.support = d.support;
-            }
-            if !ex.moved {
-                ex.moved = (pos - ex.origin).norm() >= min_travel;
+                // travel is measured on what was seen: a coasting estimate drifts on its
+                // velocity, and static clutter whose track coasted 0.5 m away was reported
+                // once seen again where it always was
+                if !ex.moved && tr.detected {
+                    ex.moved = (Point2::new(d.pose.x, d.pose.y) - ex.origin).norm() >= min_travel;
+                }
             }
             ex.misses = if tr.detected { 0 } else { ex.misses + 1 };
             if tr.state(&self.inner_cfg) != TrackState::Confirmed
@@ -344,6 +347,53 @@ mod tests {
                 .len();
         }
         assert!(seen > 10, "reported once it walked ({seen} frames)");
+    }
+
+    /// The 0.5 m travel rule looks at the detections a track takes, not at its estimate: a
+    /// standing pair whose detection jitters once (a spurious velocity), then is unseen for 15
+    /// frames while its track coasts away on that velocity, and is then seen again where it
+    /// stood, is never reported.
+    #[test]
+    fn with_legs_a_coasting_drift_is_not_travel() {
+        let cfg = LidarPeopleConfig {
+            detector: Detector::Legs,
+            ..LidarPeopleConfig::preset(Preset::Jipda)
+        };
+        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+        let pair = |cx: f64| -> Vec<Point2> {
+            let leg = |x: f64| {
+                (0..6).map(move |i| {
+                    let a = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
+                    Point2::new(x + 0.06 * a.cos(), 3.0 + 0.06 * a.sin())
+                })
+            };
+            leg(cx).chain(leg(cx + 0.3)).collect()
+        };
+        let mut reported = 0;
+        let mut max_drift: f64 = 0.0;
+        for k in 0..70u64 {
+            let pts = match k {
+                0..=9 => pair(2.0),
+                10 | 11 => pair(2.0 + 0.15 * (k - 9) as f64),
+                12..=26 => Vec::new(),
+                _ => pair(2.0),
+            };
+            reported += tr
+                .step(Stamp::from_frame(k, 0.05), &frame(k, pts))
+                .unwrap()
+                .len();
+            let LidarPeopleTracker::Jipda(j) = &tr else {
+                panic!("the jipda preset builds the jipda tracker");
+            };
+            for t in j.inner().tracks() {
+                max_drift = max_drift.max((t.est.mean[0] - 2.15).abs());
+            }
+        }
+        assert!(
+            max_drift > 0.6,
+            "the test needs a coasting drift ({max_drift:.2} m)"
+        );
+        assert_eq!(reported, 0, "static clutter reported");
     }
 
     proptest::proptest! {

@@ -722,6 +722,11 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
                     tr.alpha = d.pose.theta;
                     tr.rms = d.rms;
                     tr.support = d.support;
+                    // travel is measured on the detections, not on a coasting estimate
+                    if !tr.moved {
+                        tr.moved =
+                            (Point2::new(d.pose.x, d.pose.y) - tr.origin).norm() >= self.min_travel;
+                    }
                     self.life.observe(&mut tr.rec, &ScanObservation::hit());
                 }
                 _ => {
@@ -773,10 +778,6 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         let mut rows = Vec::new();
         let mut reports = Vec::new();
         for tr in &mut self.tracks {
-            if !tr.moved {
-                let m = tr.kf.mean();
-                tr.moved = (Point2::new(m[0], m[1]) - tr.origin).norm() >= self.min_travel;
-            }
             if self.life.state(&tr.rec) != TrackState::Confirmed
                 || tr.misses > self.max_coast_report
                 || !tr.moved
