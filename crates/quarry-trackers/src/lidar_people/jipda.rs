@@ -373,7 +373,6 @@ mod tests {
         let mut max_drift: f64 = 0.0;
         for k in 0..70u64 {
             let pts = match k {
-                0..=9 => pair(2.0),
                 10 | 11 => pair(2.0 + 0.15 * (k - 9) as f64),
                 12..=26 => Vec::new(),
                 _ => pair(2.0),
