@@ -419,9 +419,18 @@ fn lidar_detector_legs_runs_kf_gnn_and_refuses_the_table1_presets() {
     assert_eq!(v["preset"], "kf-gnn", "{v}");
     assert_eq!(v["detector"], "legs", "{v}");
     assert!(v["labelled"]["rmse_m"].as_f64().unwrap() < 0.1, "{v}");
-    for f in ["tracks.csv", "tracks_mot.txt", "metrics.json", "plot.png"] {
+    for f in [
+        "tracks.csv",
+        "tracks_mot.txt",
+        "metrics.json",
+        "plot.png",
+        "track_counts.png",
+    ] {
         assert!(out.join(f).exists(), "{f} not written");
     }
+    // the bar chart is a real image of the chart's size
+    let img = image::open(out.join("track_counts.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (800, 500));
 }
 
 #[test]

@@ -62,7 +62,8 @@ Outputs (--out DIR): tracks.csv (frame,t_us,track_id,x,y,alpha,vx,vy,support,rms
 gate_replaced), tracks_mot.txt (MOTChallenge rows frame,id,-1,-1,-1,-1,1,x,y,0 with world x, y \
 in metres), gt_people.csv (simulation), metrics.json and plot.png (room, scanners, background, \
 GT in grey, tracks in colour; with --scans: the last scan, the --legs labels in grey and every \
-track's trajectory).
+track's trajectory); with --scans also track_counts.png (how many scans after the warm-up had \
+0, 1, 2, ... tracks).
 
 Recorded scans of one scanner at leg height: --scans F.csv --detector legs (leg clusters paired \
 into people, fed to the kf-gnn or jipda tracker), e.g. \
@@ -703,6 +704,16 @@ fn run_recorded_cmd(
             &trajectories(&rows),
             &label_pts,
         )?;
+        // tracks per scan after the warm-up (the warm-up scans carry no tracks by rule)
+        let mut counts = vec![0usize; 1];
+        for f in run.frames.iter().skip(run.warm_up_scans) {
+            let k = f.tracks.len();
+            if counts.len() <= k {
+                counts.resize(k + 1, 0);
+            }
+            counts[k] += 1;
+        }
+        plot_track_counts(&out.join("track_counts.png"), &counts)?;
         let js = serde_json::to_string_pretty(&summary)?;
         let mpath = out.join("metrics.json");
         std::fs::write(&mpath, js).map_err(at(&mpath))?;
@@ -1013,6 +1024,63 @@ pub fn plot_room(
 /// positions when `--legs` is given (grey), every track's trajectory (one colour per id) and
 /// the scanner (red, at the origin, looking along +x); axes in metres, the extent that of the
 /// tracks and labels plus 1 m (at least 4 m × 4 m).
+/// A bar chart of `counts[k]` = scans with `k` tracks (after the warm-up), each bar labelled
+/// with its share of the scans.
+fn plot_track_counts(path: &Path, counts: &[usize]) -> Result<(), CmdError> {
+    crate::fonts::register()?;
+    let total = counts.iter().sum::<usize>().max(1);
+    let top = counts.iter().copied().max().unwrap_or(0).max(1) as f64 * 1.15;
+    let n = counts.len().max(1);
+    let (w, h) = (800u32, 500u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(20)
+            .caption(
+                format!("tracks per scan ({total} scans after the warm-up)"),
+                ("sans-serif", 16),
+            )
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(-0.5f64..n as f64 - 0.5, 0.0f64..top)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_labels(n.min(30))
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .x_desc("tracks reported in the scan")
+            .y_desc("scans")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let e = |x: Result<(), DrawingAreaErrorKind<_>>| x.map_err(|e| e.to_string());
+        for (k, &c) in counts.iter().enumerate() {
+            let x = k as f64;
+            e(chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(x - 0.35, 0.0), (x + 0.35, c as f64)],
+                    RGBColor(70, 110, 180).filled(),
+                )))
+                .map(|_| ()))?;
+            e(chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("{:.1}%", 100.0 * c as f64 / total as f64),
+                    (x - 0.3, c as f64 + 0.02 * top),
+                    ("sans-serif", 13),
+                )))
+                .map(|_| ()))?;
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
+    img.save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
 fn plot_recorded(
     path: &Path,
     backdrop: &[Point2],
