@@ -596,6 +596,10 @@ impl MultiTargetTracker for EkfSlamot {
                 CoreError::invalid("dt", format!("{} (must be finite and >= 0)", obs.dt)).into(),
             );
         }
+        // the input checks come before anything moves: bad input leaves the filter as it was
+        if obs.observe {
+            obs.check_detections()?;
+        }
         self.predict_robot((v, g), obs.dt)?;
         self.t += obs.dt;
         if obs.observe && (!obs.landmark_obs.is_empty() || !obs.target_obs.is_empty()) {

@@ -21,9 +21,23 @@ pub struct SlamotObservation {
 }
 
 impl SlamotObservation {
-    /// Checks that every landmark and target detection is finite (what both the RBPF and the
-    /// EKF-SLAMOT baseline require before an observation epoch).
+    /// Checks that every landmark and target detection is finite with a range > 0 (what both
+    /// the RBPF and the EKF-SLAMOT baseline require before an observation epoch; a zero range
+    /// is no detection, and readers skip it: `quarry_data::mrclam` counts them).
     pub fn check_detections(&self) -> Result<(), CoreError> {
+        let bad_range = |z: &[f64; 2]| z[0].is_finite() && z[0] <= 0.0;
+        if let Some(z) = self
+            .landmark_obs
+            .iter()
+            .map(|(_, z)| z)
+            .chain(&self.target_obs)
+            .find(|z| bad_range(z))
+        {
+            return Err(CoreError::invalid(
+                "detection range",
+                format!("{} (must be > 0)", z[0]),
+            ));
+        }
         if self
             .landmark_obs
             .iter()

@@ -679,7 +679,8 @@ where
                     est.push((
                         self.particles[0].targets[l].id,
                         Gaussian::new_unchecked(m, (cov + cov.transpose()) * 0.5),
-                        psi,
+                        // the weights sum to 1 only up to rounding: Σ w_i · 1 can be 1 + 2⁻⁵²
+                        psi.clamp(0.0, 1.0),
                     ));
                 }
                 self.target_est = est;
@@ -715,6 +716,10 @@ where
         stamp: Stamp,
         obs: &SlamotObservation,
     ) -> Result<Vec<TrackReport>, TrackerError> {
+        // the input checks come before anything moves: bad input leaves the tracker as it was
+        if obs.observe {
+            obs.check_detections()?;
+        }
         self.step_k = stamp.frame.0;
         self.sample_motion(obs)?;
         self.t += obs.dt;
@@ -781,8 +786,87 @@ mod tests {
             landmark_obs: vec![],
             target_obs: vec![[f64::NAN, 0.0]],
         };
+        let poses = |t: &SlamotTracker<DefaultStore>| {
+            t.particles().iter().map(|p| p.pose).collect::<Vec<_>>()
+        };
+        let before = poses(&t);
         assert!(t.step(Stamp::from_frame(2, 0.025), &bad_z).is_err());
+        assert_eq!(poses(&t), before, "a rejected step moved the particles");
+        // a zero range is no detection: an error naming it, and nothing moved
+        let zero = SlamotObservation {
+            target_obs: vec![[0.0, 0.1]],
+            ..bad_z.clone()
+        };
+        let e = t.step(Stamp::from_frame(2, 0.025), &zero).unwrap_err();
+        assert!(e.to_string().contains("range"), "{e}");
+        assert_eq!(poses(&t), before, "a rejected step moved the particles");
         // (the Vec store's bit-identical results: quarry-repro's tests/slamot.rs)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+        /// Arbitrary short observation sequences (odd step lengths including 0, any odometry,
+        /// detections at zero, negative, huge or odd ranges and any bearing, non-finite values
+        /// now and then), with every preset: each step gives a result or an error, never a
+        /// panic, and after an accepted step the estimates are finite, the existences in
+        /// [0, 1] and the slot ids distinct.
+        #[test]
+        fn arbitrary_observations_never_panic(
+            preset in 0usize..3,
+            seed in 0u64..1000,
+            steps in proptest::collection::vec(
+                (
+                    proptest::prop_oneof![proptest::strategy::Just(0.0f64), 1e-4f64..0.5, proptest::strategy::Just(5.0)],
+                    (-5.0f64..5.0, -3.0f64..3.0),
+                    proptest::bool::ANY,
+                    proptest::collection::vec((0u32..6, -1.0f64..40.0, -7.0f64..7.0), 0..4),
+                    proptest::collection::vec((-1.0f64..40.0, -7.0f64..7.0), 0..4),
+                    0u8..40,
+                ),
+                1..25,
+            ),
+        ) {
+            use crate::TrackerConfig;
+            use proptest::prelude::*;
+            use super::super::config::Preset;
+            let p = [Preset::Paper, Preset::S1, Preset::Mrclam][preset];
+            let cfg = SlamotConfig {
+                particles: 6,
+                ..SlamotConfig::preset(p)
+            };
+            let mut t = SlamotTracker::new(cfg, Pose2::identity(), seed).unwrap();
+            for (k, (dt, odo, observe, lms, tgs, poison)) in steps.into_iter().enumerate() {
+                let mut obs = SlamotObservation {
+                    dt,
+                    odometry: odo,
+                    observe,
+                    landmark_obs: lms.into_iter().map(|(i, r, b)| (LandmarkId(i), [r, b])).collect(),
+                    target_obs: tgs.into_iter().map(|(r, b)| [r, b]).collect(),
+                };
+                // now and then a non-finite value somewhere
+                match poison {
+                    0 => obs.odometry.0 = f64::NAN,
+                    1 => obs.dt = f64::INFINITY,
+                    2 if !obs.target_obs.is_empty() => obs.target_obs[0][1] = f64::NAN,
+                    3 if !obs.landmark_obs.is_empty() => obs.landmark_obs[0].1[0] = f64::INFINITY,
+                    _ => {}
+                }
+                let stamp = Stamp::from_frame(k as u64 + 1, dt.clamp(0.0, 5.0));
+                let Ok(reports) = t.step(stamp, &obs) else { continue };
+                let pose = t.pose_estimate();
+                prop_assert!(pose.x.is_finite() && pose.y.is_finite() && pose.theta.is_finite());
+                let mut ids = std::collections::BTreeSet::new();
+                for (id, g, psi) in t.target_estimates() {
+                    prop_assert!(ids.insert(*id), "duplicate slot {id:?}");
+                    prop_assert!((0.0..=1.0).contains(psi), "existence {psi}");
+                    prop_assert!(g.mean.iter().all(|v| v.is_finite()));
+                }
+                prop_assert_eq!(reports.len(), t.target_estimates().len());
+                for (_, m) in t.map_estimate() {
+                    prop_assert!(m[0].is_finite() && m[1].is_finite());
+                }
+            }
+        }
     }
 
     #[test]
