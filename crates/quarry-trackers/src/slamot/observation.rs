@@ -25,17 +25,17 @@ impl SlamotObservation {
     /// the RBPF and the EKF-SLAMOT baseline require before an observation epoch; a zero range
     /// is no detection, and readers skip it: `quarry_data::mrclam` counts them).
     pub fn check_detections(&self) -> Result<(), CoreError> {
-        let bad_range = |z: &[f64; 2]| z[0].is_finite() && z[0] <= 0.0;
-        if let Some(z) = self
+        let bad_range = |r: f64| r.is_finite() && r <= 0.0;
+        if let Some(r) = self
             .landmark_obs
             .iter()
-            .map(|(_, z)| z)
-            .chain(&self.target_obs)
-            .find(|z| bad_range(z))
+            .map(|(_, z)| z[0])
+            .chain(self.target_obs.iter().map(|z| z[0]))
+            .find(|&r| bad_range(r))
         {
             return Err(CoreError::invalid(
                 "detection range",
-                format!("{} (must be > 0)", z[0]),
+                format!("{r} (must be > 0)"),
             ));
         }
         if self
