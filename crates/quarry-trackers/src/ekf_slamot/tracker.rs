@@ -588,15 +588,8 @@ impl MultiTargetTracker for EkfSlamot {
         obs: &SlamotObservation,
     ) -> Result<Vec<TrackReport>, TrackerError> {
         let (v, g) = obs.odometry;
-        if !(v.is_finite() && g.is_finite()) {
-            return Err(CoreError::NonFinite { what: "odometry" }.into());
-        }
-        if !(obs.dt.is_finite() && obs.dt >= 0.0) {
-            return Err(
-                CoreError::invalid("dt", format!("{} (must be finite and >= 0)", obs.dt)).into(),
-            );
-        }
         // the input checks come before anything moves: bad input leaves the filter as it was
+        obs.check_controls()?;
         if obs.observe {
             obs.check_detections()?;
         }

@@ -78,7 +78,7 @@ pub use config::{
     SlamotConfig, TargetInit, TargetMotion, TargetWeight,
 };
 pub(crate) use init::{MapPoints, two_point_gaussian, two_point_pairs};
-pub use observation::SlamotObservation;
+pub use observation::{MAX_CONTROL, MAX_RANGE_M, MAX_STEP_S, MIN_RANGE_M, SlamotObservation};
 pub use particle::{SlamotParticle, TargetSlot};
 pub use smooth::{SmoothedRun, smooth_run, smoother_config};
 pub use tracker::{DefaultStore, EpochStats, FlatStore, SlamotTracker};

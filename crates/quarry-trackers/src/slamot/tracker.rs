@@ -65,6 +65,9 @@ pub struct SlamotTracker<S> {
     pose_est: Pose2,
     target_est: Vec<(TrackId, Gaussian<4>, f64)>,
     last_explained: Vec<f64>,
+    /// Set when an epoch failed after the particles began to change (they may no longer agree
+    /// on their slots): every later step is refused with this (control step, reason).
+    failed: Option<(u64, String)>,
     last_beta: DMatrix<f64>,
     last_beta_ids: Vec<TrackId>,
     /// Previous epoch's target detections in the map frame (two-point initiation): time, points.
@@ -130,6 +133,7 @@ where
             pose_est: initial,
             target_est: Vec::new(),
             last_explained: Vec::new(),
+            failed: None,
             last_beta: DMatrix::zeros(0, 0),
             last_beta_ids: Vec::new(),
             prev_target_pts: None,
@@ -260,14 +264,6 @@ where
 
     fn sample_motion(&mut self, obs: &SlamotObservation) -> Result<(), TrackerError> {
         let (v, g) = obs.odometry;
-        if !(v.is_finite() && g.is_finite()) {
-            return Err(CoreError::NonFinite { what: "odometry" }.into());
-        }
-        if !(obs.dt.is_finite() && obs.dt >= 0.0) {
-            return Err(
-                CoreError::invalid("dt", format!("{} (must be finite and >= 0)", obs.dt)).into(),
-            );
-        }
         let [sv, sg] = self.cfg.control_noise;
         let seed = self.seed;
         let k = self.step_k;
@@ -716,7 +712,14 @@ where
         stamp: Stamp,
         obs: &SlamotObservation,
     ) -> Result<Vec<TrackReport>, TrackerError> {
+        if let Some((k, why)) = &self.failed {
+            return Err(TrackerError::State(format!(
+                "this tracker failed at control step {k} ({why}) and its particles may disagree; \
+                 start a new one"
+            )));
+        }
         // the input checks come before anything moves: bad input leaves the tracker as it was
+        obs.check_controls()?;
         if obs.observe {
             obs.check_detections()?;
         }
@@ -725,7 +728,10 @@ where
         self.t += obs.dt;
         let epoch = obs.observe && (!obs.landmark_obs.is_empty() || !obs.target_obs.is_empty());
         if epoch {
-            self.epoch(obs)?;
+            if let Err(e) = self.epoch(obs) {
+                self.failed = Some((self.step_k, e.to_string()));
+                return Err(e);
+            }
         } else {
             // pose read-out between epochs (weights unchanged)
             let (mut x, mut y, mut c, mut s) = (0.0, 0.0, 0.0, 0.0);
@@ -800,6 +806,24 @@ mod tests {
         let e = t.step(Stamp::from_frame(2, 0.025), &zero).unwrap_err();
         assert!(e.to_string().contains("range"), "{e}");
         assert_eq!(poses(&t), before, "a rejected step moved the particles");
+        // the fuzzer's case (`slamot_tracker`): subnormal ranges made a covariance that is not
+        // positive definite half-way through the particles, which then disagreed on their
+        // slots and a later read-out indexed past one's end. Refused up front now, and the
+        // tracker goes on.
+        let subnormal = SlamotObservation {
+            dt: 32.6,
+            odometry: (8.0, 2.0e-317),
+            observe: true,
+            landmark_obs: vec![],
+            target_obs: vec![[5.4e-312, 2.0], [1.7e-307, 2.8e180], [3.3e-317, 33.0]],
+        };
+        let e = t.step(Stamp::from_frame(3, 0.025), &subnormal).unwrap_err();
+        assert!(e.to_string().contains("range"), "{e}");
+        let fine = SlamotObservation {
+            target_obs: vec![[2.0, 0.1], [3.0, -0.2], [4.0, 0.3]],
+            ..subnormal
+        };
+        t.step(Stamp::from_frame(4, 0.025), &fine).unwrap();
         // (the Vec store's bit-identical results: quarry-repro's tests/slamot.rs)
     }
 
