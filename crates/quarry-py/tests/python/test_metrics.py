@@ -8,7 +8,7 @@ import motmetrics as mm
 import numpy as np
 import pytest
 import trackeval
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 import quarry
 
@@ -91,16 +91,26 @@ def peers(gt, hyp, kind, th):
 
 
 def check(q, m, te):
-    """One comparison: quarry's dict against both peers, to 1e-6."""
+    """One comparison: quarry's dict against both peers, to 1e-6.
+
+    CLEAR MOT follows py-motmetrics (quarry-eval's `mot` docs): an object keeps the hypothesis
+    it was last matched to in *any* earlier frame. TrackEval keeps only the previous frame's
+    matches, so the two count switches differently when an object or its hypothesis skips a
+    frame (seed 63962, 5 frames, 5 objects: IDSW 2 against 4, MOTA 0.571 against 0.476). Where
+    the peers disagree on MOTA or IDSW, quarry must equal py-motmetrics (checked above) and the
+    TrackEval pair is left out; everywhere else it must equal both."""
     pairs = [
         (q["mota"], m["mota"]), (q["idf1"], m["idf1"]), (q["idp"], m["idp"]), (q["idr"], m["idr"]),
         (q["motp"], m["motp"]),
         (q["num_switches"], m["num_switches"]), (q["num_false_positives"], m["num_false_positives"]),
         (q["num_misses"], m["num_misses"]), (q["num_fragmentations"], m["num_fragmentations"]),
         (q["mostly_tracked"], m["mostly_tracked"]), (q["mostly_lost"], m["mostly_lost"]),
-        (q["mota"], te["MOTA"]), (q["idf1"], te["IDF1"]), (q["num_switches"], te["IDSW"]),
+        (q["idf1"], te["IDF1"]),
         (q["hota"], te["HOTA"]), (q["deta"], te["DetA"]), (q["assa"], te["AssA"]), (q["loca"], te["LocA"]),
     ]
+    peers_agree = (abs(m["mota"] - te["MOTA"]) <= TOL and m["num_switches"] == te["IDSW"])
+    if peers_agree:
+        pairs += [(q["mota"], te["MOTA"]), (q["num_switches"], te["IDSW"])]
     worst = 0.0
     for ours, theirs in pairs:
         if np.isnan(theirs):
@@ -176,6 +186,7 @@ def random_sequence(rng, frames, objects):
 
 @settings(max_examples=12, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(3, 25), st.integers(1, 5))
+@example(63962, 5, 5)  # the peers disagree on IDSW (2 vs 4): quarry follows py-motmetrics
 def test_random_sequences_match_peers(seed, frames, objects):
     gt, hyp = random_sequence(np.random.default_rng(seed), frames, objects)
     q = quarry.mot_metrics(gt, hyp)
