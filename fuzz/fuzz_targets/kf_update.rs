@@ -7,13 +7,9 @@ use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
 use quarry_core::Gaussian;
 use quarry_filter::{ConstantVelocity2, CvNoise, Ekf, Position2, UpdateForm, ekf};
 
-fn floats(data: &[u8]) -> impl Iterator<Item = f64> + '_ {
-    data.chunks(8).map(|c| {
-        let mut b = [0u8; 8];
-        b[..c.len()].copy_from_slice(c);
-        f64::from_le_bytes(b)
-    })
-}
+#[path = "common/floats.rs"]
+mod common_floats;
+use common_floats::floats;
 
 fuzz_target!(|data: &[u8]| {
     let mut it = floats(data).chain(std::iter::repeat(0.5));

@@ -11,13 +11,9 @@ use quarry_trackers::TrackerConfig;
 use quarry_trackers::ekf_slamot::EkfSlamot;
 use quarry_trackers::slamot::{Preset, SlamotConfig, SlamotObservation, SlamotTracker};
 
-fn floats(data: &[u8]) -> impl Iterator<Item = f64> + '_ {
-    data.chunks(8).map(|c| {
-        let mut b = [0u8; 8];
-        b[..c.len()].copy_from_slice(c);
-        f64::from_le_bytes(b)
-    })
-}
+#[path = "common/floats.rs"]
+mod common_floats;
+use common_floats::floats;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&head, rest)) = data.split_first() else {
@@ -46,7 +42,9 @@ fuzz_target!(|data: &[u8]| {
             landmark_obs: (0..usize::from((ctl >> 1) & 3))
                 .map(|i| (LandmarkId(i as u32 + u32::from(ctl >> 6)), [next(), next()]))
                 .collect(),
-            target_obs: (0..usize::from((ctl >> 3) & 3)).map(|_| [next(), next()]).collect(),
+            target_obs: (0..usize::from((ctl >> 3) & 3))
+                .map(|_| [next(), next()])
+                .collect(),
         };
         let stamp = Stamp::from_frame(k + 1, 0.1);
         if rbpf.step(stamp, &obs).is_ok() {

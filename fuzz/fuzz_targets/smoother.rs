@@ -11,13 +11,9 @@ use quarry_filter::smoother::{
 };
 use quarry_trackers::slamot::{SlamotConfig, SlamotObservation, smooth_run};
 
-fn floats(data: &[u8]) -> impl Iterator<Item = f64> + '_ {
-    data.chunks(8).map(|c| {
-        let mut b = [0u8; 8];
-        b[..c.len()].copy_from_slice(c);
-        f64::from_le_bytes(b)
-    })
-}
+#[path = "common/floats.rs"]
+mod common_floats;
+use common_floats::floats;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&head, rest)) = data.split_first() else {

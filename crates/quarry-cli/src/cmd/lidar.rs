@@ -901,6 +901,26 @@ fn gt_trajectories(window: &[EvalFrame]) -> Vec<Vec<(f64, f64)>> {
     by.into_values().collect()
 }
 
+/// Draws a `w` × `h` chart on a white bitmap with `draw` and saves it as a PNG at `path`.
+fn render_png(
+    path: &Path,
+    (w, h): (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), CmdError>,
+) -> Result<(), CmdError> {
+    crate::fonts::register()?;
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        draw(&root)?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
+    img.save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
 /// Draws the room (walls, obstacles), the scanners, the background points, GT (grey) and the
 /// tracks (one colour per id), with a caption and axes in metres (the bundled font).
 pub fn plot_room(
@@ -911,13 +931,9 @@ pub fn plot_room(
     tracks: &[Vec<(f64, f64)>],
     gt: &[Vec<(f64, f64)>],
 ) -> Result<(), CmdError> {
-    crate::fonts::register()?;
     let (w, h) = (1100u32, 900u32);
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
+    render_png(path, (w, h), |root| {
+        let mut chart = ChartBuilder::on(root)
             .margin(20)
             .caption(
                 "scanners (red), background (blue dots), truth (grey), tracks (colours)",
@@ -1012,31 +1028,19 @@ pub fn plot_room(
                 )))
                 .map(|_| ()))?;
         }
-        root.present().map_err(|e| e.to_string())?;
-    }
-    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
-    img.save(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(())
+        Ok(())
+    })
 }
 
-/// The plot of a `--scans` run: the last scan's returns (blue dots), the labelled person
-/// positions when `--legs` is given (grey), every track's trajectory (one colour per id) and
-/// the scanner (red, at the origin, looking along +x); axes in metres, the extent that of the
-/// tracks and labels plus 1 m (at least 4 m × 4 m).
 /// A bar chart of `counts[k]` = scans with `k` tracks (after the warm-up), each bar labelled
 /// with its share of the scans.
 fn plot_track_counts(path: &Path, counts: &[usize]) -> Result<(), CmdError> {
-    crate::fonts::register()?;
     let total = counts.iter().sum::<usize>().max(1);
     let top = counts.iter().copied().max().unwrap_or(0).max(1) as f64 * 1.15;
     let n = counts.len().max(1);
     let (w, h) = (800u32, 500u32);
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
+    render_png(path, (w, h), |root| {
+        let mut chart = ChartBuilder::on(root)
             .margin(20)
             .caption(
                 format!("tracks per scan ({total} scans after the warm-up)"),
@@ -1073,21 +1077,20 @@ fn plot_track_counts(path: &Path, counts: &[usize]) -> Result<(), CmdError> {
                 )))
                 .map(|_| ()))?;
         }
-        root.present().map_err(|e| e.to_string())?;
-    }
-    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
-    img.save(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(())
+        Ok(())
+    })
 }
 
+/// The plot of a `--scans` run: the last scan's returns (blue dots), the labelled person
+/// positions when `--legs` is given (grey), every track's trajectory (one colour per id) and
+/// the scanner (red, at the origin, looking along +x); axes in metres, the extent that of the
+/// tracks and labels plus 1 m (at least 4 m × 4 m).
 fn plot_recorded(
     path: &Path,
     backdrop: &[Point2],
     tracks: &[Vec<(f64, f64)>],
     labels: &[(f64, f64)],
 ) -> Result<(), CmdError> {
-    crate::fonts::register()?;
     let (mut x0, mut x1, mut y0, mut y1) = (-2.0f64, 2.0f64, -2.0f64, 2.0f64);
     for &(x, y) in tracks.iter().flatten().chain(labels) {
         if x.is_finite() && y.is_finite() {
@@ -1103,11 +1106,8 @@ fn plot_recorded(
     let half = 0.5 * (x1 - x0).max((y1 - y0) * f64::from(w) / f64::from(h));
     let half_y = half * f64::from(h) / f64::from(w);
     let (x0, x1, y0, y1) = (cx - half, cx + half, cy - half_y, cy + half_y);
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
+    render_png(path, (w, h), |root| {
+        let mut chart = ChartBuilder::on(root)
             .margin(20)
             .caption(
                 "scanner (red), last scan (blue dots), labels (grey), tracks (colours)",
@@ -1165,12 +1165,8 @@ fn plot_recorded(
                 RED.stroke_width(3),
             )))
             .map(|_| ()))?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    let img = image::RgbImage::from_raw(w, h, buf).ok_or("plot buffer size mismatch")?;
-    img.save(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(())
+        Ok(())
+    })
 }
 
 /// The `quarry demo` rows: `faithful`, then `jipda`, on `band_mid` (seed `seed`, 600 evaluated
