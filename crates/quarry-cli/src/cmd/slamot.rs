@@ -343,16 +343,37 @@ struct Report {
     interrupted: bool,
 }
 
-/// The MRCLAM scores of one run (definitions: `quarry_repro::slamot::score`, docs/slamot.md).
+/// The robot and map errors of one run, the filter's or the smoother's (flattened into the
+/// JSON of both).
 #[derive(Debug, Clone, Serialize)]
-struct MrclamRunScores {
-    seed: u64,
+struct PoseMapScores {
     robot_err: f64,
     robot_err_max: f64,
     ate_rmse: f64,
     ate_rmse_aligned: f64,
     map_err: f64,
     map_err_aligned: f64,
+}
+
+impl PoseMapScores {
+    fn new(t: &quarry_repro::slamot::TrajectoryScore, m: &quarry_repro::slamot::MapScore) -> Self {
+        Self {
+            robot_err: t.mean,
+            robot_err_max: t.max,
+            ate_rmse: t.ate_rmse,
+            ate_rmse_aligned: t.ate_rmse_aligned,
+            map_err: m.mean,
+            map_err_aligned: m.mean_aligned,
+        }
+    }
+}
+
+/// The MRCLAM scores of one run (definitions: `quarry_repro::slamot::score`, docs/slamot.md).
+#[derive(Debug, Clone, Serialize)]
+struct MrclamRunScores {
+    seed: u64,
+    #[serde(flatten)]
+    pose: PoseMapScores,
     landmarks_mapped: usize,
     ospa: f64,
     gospa: f64,
@@ -376,12 +397,8 @@ struct MrclamRunScores {
 /// The scores of one smoothed run.
 #[derive(Debug, Clone, Serialize)]
 struct SmoothedScores {
-    robot_err: f64,
-    robot_err_max: f64,
-    ate_rmse: f64,
-    ate_rmse_aligned: f64,
-    map_err: f64,
-    map_err_aligned: f64,
+    #[serde(flatten)]
+    pose: PoseMapScores,
     /// speed scale, turn-rate scale, turn-rate bias (rad/s), time offset (s)
     calibration: [f64; 4],
     iterations: usize,
@@ -1106,12 +1123,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
             )?),
         };
         let smoothed = sm_run.as_ref().map(|sm| SmoothedScores {
-            robot_err: sm.trajectory.mean,
-            robot_err_max: sm.trajectory.max,
-            ate_rmse: sm.trajectory.ate_rmse,
-            ate_rmse_aligned: sm.trajectory.ate_rmse_aligned,
-            map_err: sm.map_score.mean,
-            map_err_aligned: sm.map_score.mean_aligned,
+            pose: PoseMapScores::new(&sm.trajectory, &sm.map_score),
             calibration: sm.calibration,
             iterations: sm.iterations,
             converged: sm.converged,
@@ -1133,12 +1145,7 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         });
         scores.push(MrclamRunScores {
             seed: r,
-            robot_err: res.trajectory.mean,
-            robot_err_max: res.trajectory.max,
-            ate_rmse: res.trajectory.ate_rmse,
-            ate_rmse_aligned: res.trajectory.ate_rmse_aligned,
-            map_err: res.map_score.mean,
-            map_err_aligned: res.map_score.mean_aligned,
+            pose: PoseMapScores::new(&res.trajectory, &res.map_score),
             landmarks_mapped: res.map_score.landmarks,
             ospa: res.ospa,
             gospa: res.gospa,
@@ -1161,7 +1168,12 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
     pb.finish_and_clear();
     // the run written out and plotted: the median robot error
     let mut order: Vec<usize> = (0..results.len()).collect();
-    order.sort_by(|a, b| scores[*a].robot_err.total_cmp(&scores[*b].robot_err));
+    order.sort_by(|a, b| {
+        scores[*a]
+            .pose
+            .robot_err
+            .total_cmp(&scores[*b].pose.robot_err)
+    });
     if let (Some(d), Some(&med)) = (&args.out, order.get(order.len() / 2)) {
         write_mrclam_outputs(
             d,
@@ -1190,20 +1202,20 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
         target_robots: run.target_robots.clone(),
         timing: format!("{:?}", args.timing),
         skipped: run.skips,
-        robot_err: spread(scores.iter().map(|s| s.robot_err)),
-        ate_rmse: spread(scores.iter().map(|s| s.ate_rmse)),
-        ate_rmse_aligned: spread(scores.iter().map(|s| s.ate_rmse_aligned)),
-        map_err: spread(scores.iter().map(|s| s.map_err)),
+        robot_err: spread(scores.iter().map(|s| s.pose.robot_err)),
+        ate_rmse: spread(scores.iter().map(|s| s.pose.ate_rmse)),
+        ate_rmse_aligned: spread(scores.iter().map(|s| s.pose.ate_rmse_aligned)),
+        map_err: spread(scores.iter().map(|s| s.pose.map_err)),
         gospa: spread(scores.iter().map(|s| s.gospa)),
         assoc_accuracy: spread(scores.iter().map(|s| s.assoc_accuracy)),
         smoothed: args.smooth.map(|mode| {
             let sm = || scores.iter().filter_map(|s| s.smoothed.as_ref());
             SmoothedSpread {
                 mode: format!("{mode:?}").to_lowercase(),
-                robot_err: spread(sm().map(|s| s.robot_err)),
-                robot_err_max: spread(sm().map(|s| s.robot_err_max)),
-                ate_rmse_aligned: spread(sm().map(|s| s.ate_rmse_aligned)),
-                map_err: spread(sm().map(|s| s.map_err)),
+                robot_err: spread(sm().map(|s| s.pose.robot_err)),
+                robot_err_max: spread(sm().map(|s| s.pose.robot_err_max)),
+                ate_rmse_aligned: spread(sm().map(|s| s.pose.ate_rmse_aligned)),
+                map_err: spread(sm().map(|s| s.pose.map_err)),
             }
         }),
         runs: scores,
@@ -1254,11 +1266,11 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
             for r in &m.runs {
                 t.row([
                     r.seed.to_string(),
-                    format!("{:.3}", r.robot_err),
-                    format!("{:.3}", r.robot_err_max),
-                    format!("{:.3}", r.ate_rmse),
-                    format!("{:.3}", r.ate_rmse_aligned),
-                    format!("{:.3}", r.map_err),
+                    format!("{:.3}", r.pose.robot_err),
+                    format!("{:.3}", r.pose.robot_err_max),
+                    format!("{:.3}", r.pose.ate_rmse),
+                    format!("{:.3}", r.pose.ate_rmse_aligned),
+                    format!("{:.3}", r.pose.map_err),
                     format!("{:.3}", r.gospa),
                     format!("{:.3}", r.assoc_accuracy),
                     format!("{}/{}", r.resamples, r.epochs),
@@ -1296,10 +1308,10 @@ fn run_mrclam_cmd(args: &SlamotArgs, base: SlamotConfig, dir: &Path, out: &Outpu
                     if let Some(x) = &r.smoothed {
                         t.row([
                             r.seed.to_string(),
-                            format!("{:.3}", x.robot_err),
-                            format!("{:.3}", x.robot_err_max),
-                            format!("{:.3}", x.ate_rmse_aligned),
-                            format!("{:.3}", x.map_err),
+                            format!("{:.3}", x.pose.robot_err),
+                            format!("{:.3}", x.pose.robot_err_max),
+                            format!("{:.3}", x.pose.ate_rmse_aligned),
+                            format!("{:.3}", x.pose.map_err),
                             format!("{:.4}", x.calibration[0]),
                             format!("{:.4}", x.calibration[1]),
                             format!("{:.4}", x.calibration[2]),
