@@ -92,6 +92,22 @@ class Segment:
         return gtsam.BetweenFactorPose2(X(i), X(j), gtsam.Pose2(dx, dy, dth), noise)
 
 
+def walk(run, move):
+    """The recording's events in order: `move(dt, v, w)` with the controls in force since the
+    previous event, then each measurement event yielded as (stamp, detections)."""
+    t = run["t0"]
+    u = (0.0, 0.0)
+    for te, kind, payload in run["events"]:
+        dt = te - t
+        if dt > 0.0:
+            move(dt, *u)
+            t = te
+        if kind == 0:
+            u = payload
+            continue
+        yield te, payload
+
+
 def X(i):
     return gtsam.symbol("x", i)
 
@@ -120,21 +136,13 @@ def main():
     meas_noise = gtsam.noiseModel.Robust.Create(
         gtsam.noiseModel.mEstimator.Huber.Create(1.345),
         gtsam.noiseModel.Diagonal.Sigmas([sb, sr]))
-    t = run["t0"]
-    u = (0.0, 0.0)
     seg = Segment(sv, sw)
     node = 0
-    node_t = [t]
+    node_t = [run["t0"]]
     first_obs = {}
     epochs_node = []  # (node, stamp) of every epoch inside the Vicon span
-    for te, kind, payload in run["events"]:
-        dt = te - t
-        if dt > 0.0:
-            seg.step(dt, *u)
-            t = te
-        if kind == 0:
-            u = payload
-            continue
+    # a lambda: `seg` is replaced at every new node, the moves go to the current one
+    for te, payload in walk(run, lambda dt, v, w: seg.step(dt, v, w)):
         if te > node_t[-1]:
             graph.add(seg.factor(node, node + 1))
             node += 1
@@ -158,16 +166,7 @@ def main():
     else:
         fwd = mp.DeadReckoning(init)
     poses = [init.copy()]
-    t = run["t0"]
-    u = (0.0, 0.0)
-    for te, kind, payload in run["events"]:
-        dt = te - t
-        if dt > 0.0:
-            fwd.propagate(dt, *u)
-            t = te
-        if kind == 0:
-            u = payload
-            continue
+    for te, payload in walk(run, fwd.propagate):
         obs = [(j, r, b) for j, r, b in payload if j is not None]
         if obs:
             fwd.update(obs)
