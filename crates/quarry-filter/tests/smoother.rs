@@ -354,14 +354,7 @@ fn bad_input_is_a_clear_error() {
         ),
         (
             SmootherProblem {
-                observations: (0..=MAX_LANDMARKS as u32)
-                    .map(|l| LandmarkObservation {
-                        node: 1,
-                        landmark: LandmarkId(l),
-                        range: 1.0,
-                        bearing: 0.0,
-                    })
-                    .collect(),
+                observations: one_sighting_each(MAX_LANDMARKS as u32 + 1),
                 ..tiny()
             },
             "distinct landmarks",
@@ -370,14 +363,7 @@ fn bad_input_is_a_clear_error() {
             // 200 000 nodes x 100 landmarks: a 122-million-entry border, refused
             SmootherProblem {
                 node_times: (0..200_000).map(f64::from).collect(),
-                observations: (0..100u32)
-                    .map(|l| LandmarkObservation {
-                        node: 1,
-                        landmark: LandmarkId(l),
-                        range: 1.0,
-                        bearing: 0.0,
-                    })
-                    .collect(),
+                observations: one_sighting_each(100),
                 ..tiny()
             },
             "dense border",
@@ -478,4 +464,16 @@ proptest! {
             prop_assert!(out.final_cost <= out.initial_cost);
         }
     }
+}
+
+/// One detection (1 m straight ahead, from node 1) of each of landmarks 0..n.
+fn one_sighting_each(n: u32) -> Vec<LandmarkObservation> {
+    (0..n)
+        .map(|l| LandmarkObservation {
+            node: 1,
+            landmark: LandmarkId(l),
+            range: 1.0,
+            bearing: 0.0,
+        })
+        .collect()
 }
