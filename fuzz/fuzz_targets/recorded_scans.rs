@@ -1,6 +1,7 @@
 //! Fuzz the recorded-scan path of `quarry lidar --scans`: the legs CSV parser, and the scan CSV
 //! reader feeding `run_recorded` (background, then the tracker the first byte picks: Table 1,
-//! `kf-gnn` or `jipda`, with the contour or the leg detector) and `score_labelled`.
+//! `kf-gnn` or `jipda`, with the contour or the leg detector; bit 3 turns on the background's
+//! early start) and `score_labelled`.
 //! Any bytes: a result or a typed error, never a panic.
 #![no_main]
 
@@ -43,6 +44,7 @@ fuzz_target!(|data: &[u8]| {
     let cfg = LidarPeopleConfig {
         t_warm_s: 0.5,
         detector,
+        bg_early_start_m: if pick & 8 != 0 { 0.1 } else { 0.0 },
         ..LidarPeopleConfig::preset(preset)
     };
     if let Ok(run) = run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0) {

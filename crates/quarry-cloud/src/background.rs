@@ -272,6 +272,22 @@ pub struct ChiSquareConfig {
     pub region_radius: f64,
     /// The long-term background; `None` in the `literal` preset.
     pub long_term: Option<LongTermConfig>,
+    /// Early start (not in spec 003; `None` = off, the spec's behaviour): while the window
+    /// is still filling (the first `window / 2` scans), a beam with fewer than `window / 2`
+    /// valid readings is compared with the *farthest* reading it has returned so far instead
+    /// of being dynamic by rule (3). A reading this many metres or more in front of that
+    /// farthest reading is dynamic, every other reading static; a beam that has returned
+    /// nothing yet (the first scan) is static, and one whose earlier readings include a
+    /// no-return is taken to have seen nothing there, so any return in it is dynamic. The
+    /// background behind a walking person is revealed as they walk, so a scanner switched on
+    /// among walking people sees them from its second scan instead of after `window / 2`
+    /// scans. A person standing still from the start is background, as with rule (3) once
+    /// the window is full. From scan `window / 2` on the spec's tests apply unchanged, but the
+    /// window keeps the farthest reading (or a no-return) in place of each early reading it
+    /// found dynamic: kept as read, the walker's ranges would hold the window mean in front of
+    /// the wall behind them, and the wall would turn dynamic at scan `window / 2` (a ghost
+    /// walking along the wall, seen on the leg-height recordings; see docs/lidar-people.md).
+    pub early_start: Option<f64>,
 }
 
 impl Default for ChiSquareConfig {
@@ -284,6 +300,7 @@ impl Default for ChiSquareConfig {
             region_constraint: true,
             region_radius: 0.30,
             long_term: Some(LongTermConfig::default()),
+            early_start: None,
         }
     }
 }
@@ -309,6 +326,11 @@ impl ChiSquareConfig {
         }
         if !(self.region_radius.is_finite() && self.region_radius >= 0.0) {
             return Err(CoreError::invalid("region_radius", "must be finite and >= 0").into());
+        }
+        if let Some(tol) = self.early_start
+            && !(tol.is_finite() && tol > 0.0)
+        {
+            return Err(CoreError::invalid("early_start", "must be finite and positive").into());
         }
         if let SigmaMode::Learned { floor } = self.sigma
             && !(floor.is_finite() && floor > 0.0)
@@ -362,6 +384,10 @@ pub struct ChiSquareBackground {
     warm: Vec<u16>,
     background: Vec<Option<f64>>,
     static_run: Vec<u32>,
+    // early start: per beam the farthest range returned so far (mm, 0 = none yet) and whether
+    // the beam has ever returned nothing; empty without early start
+    farthest: Vec<u16>,
+    no_return: Vec<bool>,
     learned_sigma: Option<Vec<f64>>,
     diag: ScanDiagnostics,
 }
@@ -401,6 +427,16 @@ impl ChiSquareBackground {
             warm: vec![0; warm_len],
             background: vec![None; n],
             static_run: vec![0; n],
+            farthest: if cfg.early_start.is_some() {
+                vec![0; n]
+            } else {
+                Vec::new()
+            },
+            no_return: if cfg.early_start.is_some() {
+                vec![false; n]
+            } else {
+                Vec::new()
+            },
             learned_sigma: None,
             diag: ScanDiagnostics::default(),
         })
@@ -433,6 +469,50 @@ impl ChiSquareBackground {
         &self.diag
     }
 
+    /// The early-start test of beam `n` with reading `r` (see [`ChiSquareConfig::early_start`]):
+    /// `None` when the reading is static, else the range (mm) the window keeps in its place —
+    /// the farthest reading so far, or 0 (no return) when the beam once returned nothing.
+    fn early_test(&self, n: usize, r: f64, tol: f64) -> Option<u16> {
+        if self.no_return[n] {
+            return Some(0);
+        }
+        let farthest = self.farthest[n];
+        if farthest == 0 {
+            return None; // the first scan: nothing known
+        }
+        (r <= f64::from(farthest) * 1e-3 - tol).then_some(farthest)
+    }
+
+    /// Early start, after labelling: records the farthest range and no-returns of every beam
+    /// and, while the window holds every scan so far, replaces the window's readings that a
+    /// new farthest reading shows to lie `tol` or more in front of the background.
+    fn early_update(&mut self, scan: &PolarScan, tol: f64) {
+        let m = self.cfg.window;
+        let all_in_window = 2 * self.scans < m as u64;
+        for n in 0..self.table.len() {
+            if scan.range_m(n).is_none() {
+                self.no_return[n] = true;
+                continue;
+            }
+            let mm = scan.ranges_mm[n];
+            if mm <= self.farthest[n] {
+                continue;
+            }
+            self.farthest[n] = mm;
+            if all_in_window && !self.no_return[n] {
+                let cut = f64::from(mm) * 1e-3 - tol;
+                for k in 0..self.scans as usize {
+                    let slot = n * m + k;
+                    let old = self.ring[slot];
+                    if old != 0 && f64::from(old) * 1e-3 <= cut {
+                        self.sum_mm[n] += u64::from(mm - old);
+                        self.ring[slot] = mm;
+                    }
+                }
+            }
+        }
+    }
+
     fn sigma(&self, n: usize, d: f64) -> f64 {
         match (&self.cfg.sigma, &self.learned_sigma) {
             (SigmaMode::Learned { .. }, Some(s)) => s[n],
@@ -459,9 +539,16 @@ impl ChiSquareBackground {
         let m = self.cfg.window;
         let n_beams = self.table.len();
         let ln_th = -2.0 * self.cfg.p_threshold.ln(); // P > P_th  <=>  D² < -2 ln P_th
+        let early = self.cfg.early_start.filter(|_| 2 * self.scans < m as u64);
         let mut points: Vec<Option<Point2>> = vec![None; n_beams];
         let mut candidate = vec![false; n_beams];
         let mut d2s = vec![f64::NAN; n_beams];
+        // early start: what the window keeps instead of a reading the early test found dynamic
+        let mut imputed: Vec<Option<u16>> = if early.is_some() {
+            vec![None; n_beams]
+        } else {
+            Vec::new()
+        };
         for n in 0..n_beams {
             let Some(r) = scan.range_m(n) else { continue };
             let Some(p) = self.table.point(n, r) else {
@@ -470,7 +557,11 @@ impl ChiSquareBackground {
             points[n] = Some(p);
             let nv = self.n_valid[n] as usize;
             if 2 * nv < m {
-                continue; // fewer than m/2 valid: no evidence of static
+                if let Some(tol) = early {
+                    imputed[n] = self.early_test(n, r, tol);
+                    candidate[n] = imputed[n].is_none();
+                }
+                continue; // fewer than m/2 valid: no evidence of static (rule (3))
             }
             let mean_r = self.sum_mm[n] as f64 * 1e-3 / nv as f64;
             let mean = self.table.point(n, mean_r).unwrap_or(p);
@@ -496,6 +587,24 @@ impl ChiSquareBackground {
             Vec::new()
         };
         let mut overridden = 0;
+        // early start: until b_n is learned, the farthest reading so far stands in for it
+        if let Some(lt) = self.cfg.long_term
+            && self.cfg.early_start.is_some()
+            && self.scans < lt.warm_scans as u64
+        {
+            for n in 0..n_beams {
+                if let Some(r) = scan.range_m(n)
+                    && !is_static[n]
+                    && !self.no_return[n]
+                    && self.farthest[n] != 0
+                    && (r - f64::from(self.farthest[n]) * 1e-3).abs()
+                        <= (3.0 * sigma_d(r)).max(0.03)
+                {
+                    is_static[n] = true;
+                    overridden += 1;
+                }
+            }
+        }
         if self.cfg.long_term.is_some() {
             for n in 0..n_beams {
                 if let (Some(b), Some(r)) = (self.background[n], scan.range_m(n))
@@ -515,6 +624,9 @@ impl ChiSquareBackground {
             })
             .collect();
         self.update_long_term(scan, &is_static, &window_static);
+        if let Some(tol) = self.cfg.early_start {
+            self.early_update(scan, tol);
+        }
         // push the scan into the window
         for n in 0..n_beams {
             let slot = n * m + self.head;
@@ -523,10 +635,10 @@ impl ChiSquareBackground {
                 self.sum_mm[n] -= u64::from(old);
                 self.n_valid[n] -= 1;
             }
-            let new = if points[n].is_some() {
-                scan.ranges_mm[n]
-            } else {
-                0
+            let new = match (imputed.get(n), points[n]) {
+                (Some(Some(mm)), _) => *mm,
+                (_, Some(_)) => scan.ranges_mm[n],
+                (_, None) => 0,
             };
             self.ring[slot] = new;
             if new != 0 {
@@ -959,6 +1071,105 @@ mod tests {
             let a = region_constraint(&pts, &cand, delta).unwrap();
             let b = region_constraint_scan(&pts, &cand, delta, inc).unwrap();
             prop_assert_eq!(a, b);
+        }
+    }
+
+    fn early_model(
+        early_start: Option<f64>,
+        long_term: Option<LongTermConfig>,
+    ) -> ChiSquareBackground {
+        ChiSquareBackground::new(
+            &one_beam_geometry(),
+            ChiSquareConfig {
+                region_constraint: false,
+                long_term,
+                early_start,
+                ..ChiSquareConfig::default()
+            },
+        )
+        .unwrap()
+    }
+
+    /// Early start: the first scan is static (nothing known), a person walking out of the beam
+    /// reveals the wall, a reading 0.10 m or more in front of the farthest one is dynamic, and a
+    /// beam that once returned nothing makes any later return dynamic. Without it every reading
+    /// of the first `window / 2` scans is dynamic (rule (3)).
+    #[test]
+    fn early_start_sees_a_walker_from_the_second_scan() {
+        // window 40: the early phase is scans 0..20
+        let ranges: [(u16, BeamLabel); 6] = [
+            (1500, BeamLabel::Static), // scan 0: a person in the beam, nothing known yet
+            (5000, BeamLabel::Static), // the person walked on: the wall
+            (1500, BeamLabel::Dynamic), // the person back in the beam
+            (4950, BeamLabel::Static), // the wall, 5 cm short of its farthest reading
+            (4890, BeamLabel::Dynamic), // 11 cm short of it
+            (5000, BeamLabel::Static),
+        ];
+        let mut bg = early_model(Some(0.10), None);
+        let mut spec = early_model(None, None);
+        for (k, (mm, want)) in ranges.into_iter().enumerate() {
+            let s = scan1(k as u32, mm);
+            assert_eq!(bg.classify_scan(&s).unwrap()[0], want, "scan {k}");
+            assert_eq!(
+                spec.classify_scan(&s).unwrap()[0],
+                BeamLabel::Dynamic,
+                "scan {k}"
+            );
+        }
+        // the walker's early readings do not hold the window in front of the wall: at scan 20
+        // (the window test from here on) the wall is static with early start; without it the
+        // window mean holds the walker and the wall is dynamic
+        for (early, want) in [(Some(0.10), BeamLabel::Static), (None, BeamLabel::Dynamic)] {
+            let mut bg = early_model(early, None);
+            for k in 0..20 {
+                bg.classify_scan(&scan1(k, if k % 4 == 1 { 5000 } else { 1500 }))
+                    .unwrap();
+            }
+            assert_eq!(
+                bg.classify_scan(&scan1(20, 5000)).unwrap()[0],
+                want,
+                "{early:?}"
+            );
+        }
+        let mut bg = early_model(Some(0.10), None);
+        bg.classify_scan(&scan1(0, 5000)).unwrap();
+        bg.classify_scan(&scan1(1, 0)).unwrap(); // no return
+        assert_eq!(
+            bg.classify_scan(&scan1(2, 5000)).unwrap()[0],
+            BeamLabel::Dynamic
+        );
+        // a bad tolerance is refused
+        for bad in [0.0, -0.1, f64::NAN, f64::INFINITY] {
+            let cfg = ChiSquareConfig {
+                early_start: Some(bad),
+                ..ChiSquareConfig::default()
+            };
+            assert!(
+                ChiSquareBackground::new(&one_beam_geometry(), cfg).is_err(),
+                "{bad}"
+            );
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Early start changes the window only through the first `window / 2` scans, so once
+        /// those have left the window (scan `window / 2 + window` = 60) a model with it labels
+        /// every reading as one without it, on any sequence of readings, valid or not.
+        #[test]
+        fn early_start_is_forgotten_once_its_scans_leave_the_window(
+            mm in prop::collection::vec(prop_oneof![Just(0u16), 100u16..30_000, 4_900u16..5_100], 60..140),
+            tol in 0.01f64..1.0,
+        ) {
+            let mut a = early_model(Some(tol), None);
+            let mut b = early_model(None, None);
+            for (k, &r) in mm.iter().enumerate() {
+                let s = scan1(k as u32, r);
+                let (la, lb) = (a.classify_scan(&s).unwrap(), b.classify_scan(&s).unwrap());
+                if k >= 60 {
+                    prop_assert_eq!(la, lb, "scan {}", k);
+                }
+            }
         }
     }
 

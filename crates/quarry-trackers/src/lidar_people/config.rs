@@ -168,6 +168,16 @@ pub struct LidarPeopleConfig {
     /// Update b_n only from static readings within τ_g of it [Q: true; the ungated update
     /// drifts toward people and leaves wall ghosts — see docs/lidar-people.md].
     pub bg_gated_update: bool,
+    /// Early start of the background, metres (0 = off, the spec's rule (3): every beam is
+    /// dynamic until the window holds `window_m / 2` readings, and [`super::run_recorded`]
+    /// tracks nothing before that). When > 0, each beam is compared during those first scans
+    /// with the farthest range it has returned so far, and a reading at least this far in front
+    /// of it is dynamic (quarry-cloud `ChiSquareConfig::early_start`), so tracking starts at the
+    /// first scan. [not in the spec; 0 (off) in every preset. 0.10 m is the value measured in
+    /// docs/lidar-people.md ("Early start"): a leg's diameter, since a person is at least that
+    /// far in front of the wall behind them, and 10σ of the datasheet range noise, the margin
+    /// the farthest of a few noisy readings needs.]
+    pub bg_early_start_m: f64,
 
     // ----- fusion (§2.4) -----
     /// Fused-frame interval T_F, seconds [P: 0.05].
@@ -382,6 +392,7 @@ impl LidarPeopleConfig {
             alpha_b: 0.02,
             t_relearn_s: 2.0,
             bg_gated_update: true,
+            bg_early_start_m: 0.0,
             frame_period_s: 0.05,
             tau_sync_s: 0.0125,
             l_max_s: 0.1,
@@ -563,6 +574,7 @@ impl crate::TrackerConfig for LidarPeopleConfig {
             ("icp_eps_delta", self.icp_eps_delta),
             ("r_m", self.r_m),
             ("second_start_above", self.second_start_above),
+            ("bg_early_start_m", self.bg_early_start_m),
         ];
         for (name, v) in nonneg {
             if !(v.is_finite() && v >= 0.0) {

@@ -11,7 +11,9 @@
 //! - a scan with the wrong beam count (`skipped_bad_scans`);
 //! - warm-up: the first `window_m / 2` scans are classified (they fill the background window)
 //!   but not tracked — until then every beam is dynamic by rule (3) (`warm_up_scans`; their
-//!   frames carry no tracks);
+//!   frames carry no tracks). With `bg_early_start_m > 0` (the `jipda` preset) nothing is
+//!   skipped: the background's early start labels those scans, and tracking starts at the
+//!   first one (`warm_up_scans` = 0);
 //! - a gap: the scanner stopped sending for more than `gap_factor` periods (`gaps`, the longest
 //!   in `longest_gap_s`). Nothing is invented for the missing time; the tracker sees a longer Δt
 //!   on the next scan, and Table 1 gate (8) then decides whether tracks survive.
@@ -149,7 +151,7 @@ pub fn run_recorded(
         let labels = bg.classify(scan)?;
         run.client_seconds += t0.elapsed().as_secs_f64();
         last_t = Some(scan.t);
-        if run.warm_up_scans < cfg.window_m / 2 {
+        if cfg.bg_early_start_m == 0.0 && run.warm_up_scans < cfg.window_m / 2 {
             run.warm_up_scans += 1;
             run.frames.push(RecordedFrame {
                 t: scan.t,
@@ -257,5 +259,85 @@ mod tests {
             }
             Err(e) => assert!(!e.to_string().is_empty()),
         }
+    }
+
+    /// A person walking across the scanner's view from the first scan, at leg height: the two
+    /// legs are discs of radius 0.06 m, 0.2 m apart, the wall at 5 m; 1 m/s along y at x = 2 m.
+    fn walker_scans() -> (ScanGeometry, Vec<PolarScan>) {
+        let g = ScanGeometry {
+            n_beams: 361,
+            angle_min: -std::f64::consts::FRAC_PI_2,
+            angle_increment: std::f64::consts::PI / 360.0,
+            range_min: 0.05,
+            range_max: 10.0,
+            scan_period: 0.1,
+        };
+        let scans = (0..60)
+            .map(|k| {
+                let y = -1.5 + 0.1 * f64::from(k);
+                let legs = [(2.0, y - 0.1), (2.0, y + 0.1)];
+                let ranges = (0..361)
+                    .map(|n| {
+                        let a = g.angle_min + f64::from(n) * g.angle_increment;
+                        let (s, c) = a.sin_cos();
+                        let mut r = 5.0 / c.max(1e-3);
+                        for (lx, ly) in legs {
+                            // ray t·(c, s) against the disc: t² − 2t(c·lx + s·ly) + |l|² − ρ² = 0
+                            let b = c * lx + s * ly;
+                            let disc = b * b - (lx * lx + ly * ly - 0.06 * 0.06);
+                            if disc >= 0.0 {
+                                r = r.min(b - disc.sqrt());
+                            }
+                        }
+                        if r < 10.0 {
+                            (r * 1000.0).round() as u16
+                        } else {
+                            0
+                        }
+                    })
+                    .collect();
+                PolarScan::try_new(SensorId(0), k, TimeUs(i64::from(k) * 100_000), ranges, g)
+                    .unwrap()
+            })
+            .collect();
+        (g, scans)
+    }
+
+    /// With `bg_early_start_m` the background labels the first `window_m / 2` scans and the
+    /// walker is tracked before the window has filled; without it nothing is tracked before
+    /// scan 20. With early start every reported row is on the walker; without it the spec's
+    /// model also reports the wall just uncovered behind the walker's shadow (its window still
+    /// holds the legs, and b_n is learned only after `t_warm_s`): a second track along the wall.
+    #[test]
+    fn early_start_tracks_a_walker_before_the_window_fills() {
+        let (g, scans) = walker_scans();
+        let run_with = |early: f64| {
+            let cfg = LidarPeopleConfig {
+                detector: super::super::config::Detector::Legs,
+                bg_early_start_m: early,
+                ..LidarPeopleConfig::jipda()
+            };
+            let run = run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0).unwrap();
+            assert_eq!(run.warm_up_scans, if early > 0.0 { 0 } else { 20 });
+            let first = run.frames.iter().position(|f| !f.tracks.is_empty());
+            (run, first.expect("a track"))
+        };
+        let (early, first) = run_with(0.10);
+        assert!(first < 12, "first track at scan {first}");
+        assert_eq!(early.distinct_tracks(), 1);
+        for (k, f) in early.frames.iter().enumerate() {
+            let y = -1.5 + 0.1 * k as f64;
+            for t in &f.tracks {
+                assert!(
+                    (t.x - 2.0).abs() < 0.15 && (t.y - y).abs() < 0.3,
+                    "({}, {}) at scan {k}",
+                    t.x,
+                    t.y
+                );
+            }
+        }
+        let (spec, first) = run_with(0.0);
+        assert!(first >= 20, "first track at scan {first}");
+        assert!(spec.distinct_tracks() >= 1);
     }
 }

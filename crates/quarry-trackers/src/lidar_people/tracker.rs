@@ -960,6 +960,7 @@ pub fn background_of(
             relearn_scans: per_scan(cfg.t_relearn_s) as u32,
             gated_update: cfg.bg_gated_update,
         }),
+        early_start: (cfg.bg_early_start_m > 0.0).then_some(cfg.bg_early_start_m),
     };
     Ok(ChiSquareBackground::new(geometry, bc)?)
 }
