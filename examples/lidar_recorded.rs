@@ -1,5 +1,7 @@
 //! The lidar people tracker on recorded scans: one scanner's CSV (`stamp_s,r0..r{N-1}`) with
-//! its geometry from a `scan_meta.json`, scored against labelled leg centroids.
+//! its geometry from a `scan_meta.json`, scored against labelled leg centroids. A scanner at
+//! leg height: the leg detector feeding the `jipda` tracker (what `quarry lidar --scans F.csv
+//! --detector legs` runs).
 //!
 //! Run: `cargo run --release --example lidar_recorded -- ../shared/data/leg-tracker positive_1`
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -8,7 +10,7 @@ use quarry::core::Pose2;
 use quarry::data::leg_labels::parse_legs_csv;
 use quarry::data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry::repro::lidar::score_labelled;
-use quarry::trackers::lidar_people::{LidarPeopleConfig, run_recorded};
+use quarry::trackers::lidar_people::{Detector, LidarPeopleConfig, run_recorded};
 use std::path::PathBuf;
 
 fn main() {
@@ -26,7 +28,10 @@ fn main() {
         ScanCsvOptions::default(),
     )
     .expect("scans");
-    let cfg = LidarPeopleConfig::faithful();
+    let cfg = LidarPeopleConfig {
+        detector: Detector::Legs,
+        ..LidarPeopleConfig::jipda()
+    };
     // the scanner is the world origin; 3 periods without a scan count as a gap
     let run = run_recorded(&cfg, &geometry, Pose2::default(), &scans, 3.0).expect("run");
     println!(

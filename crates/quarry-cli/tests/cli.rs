@@ -374,7 +374,7 @@ fn a_missing_scans_csv_is_named_as_such() {
 }
 
 #[test]
-fn lidar_detector_legs_runs_kf_gnn_and_refuses_the_table1_presets() {
+fn lidar_detector_legs_runs_jipda_and_refuses_the_table1_presets() {
     let d = tmpdir("legs-flags");
     let p = d.join("nowhere_scans.csv");
     let scans = p.to_str().unwrap();
@@ -416,8 +416,10 @@ fn lidar_detector_legs_runs_kf_gnn_and_refuses_the_table1_presets() {
     ]);
     assert_eq!(code, 0, "{stderr}");
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
-    assert_eq!(v["preset"], "kf-gnn", "{v}");
+    assert_eq!(v["preset"], "jipda", "{v}");
     assert_eq!(v["detector"], "legs", "{v}");
+    // the jipda preset's background starts early: no warm-up scans
+    assert_eq!(v["warm_up_scans"], 0, "{v}");
     assert!(v["labelled"]["rmse_m"].as_f64().unwrap() < 0.1, "{v}");
     for f in [
         "tracks.csv",

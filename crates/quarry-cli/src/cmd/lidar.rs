@@ -151,8 +151,9 @@ pub struct LidarArgs {
     pub mcap: Option<PathBuf>,
     /// Detections: contour (MeanShift + torso-ellipse ICP, the paper's; default) or legs (leg
     /// clusters paired into people, for one scanner at leg height; quarry_cloud::legs). legs
-    /// runs the kf-gnn or jipda tracker: without --preset it selects kf-gnn, with literal or
-    /// faithful it is an error. Also the TOML key `detector`.
+    /// runs the kf-gnn or jipda tracker: unless --preset or the --config file chose kf-gnn, it
+    /// selects jipda; with --preset literal or faithful it is an error. Also the TOML
+    /// key `detector`.
     #[arg(long, value_name = "contour|legs")]
     pub detector: Option<String>,
 }
@@ -391,9 +392,22 @@ pub fn run(args: &LidarArgs, output: &Output) -> CmdResult {
     }
     if let Some(d) = &args.detector {
         cfg.detector = lidar_people::Detector::parse(d)?;
-        if cfg.detector == lidar_people::Detector::Legs && args.cfg.preset.is_none() {
-            // legs feed the kf-gnn tracker (kf-gnn = faithful + the tracker switch)
-            cfg.preset = Preset::KfGnn;
+        if cfg.detector == lidar_people::Detector::Legs
+            && args.cfg.preset.is_none()
+            && cfg.preset == Preset::Faithful
+        {
+            // neither the flag nor the config file chose a tracker that takes leg detections
+            // (faithful is the default and refuses them): legs run the jipda preset, over the
+            // config file if there is one
+            let jipda = ConfigArgs {
+                preset: Some(Preset::Jipda),
+                config: args.cfg.config.clone(),
+            };
+            cfg = jipda.load()?;
+            cfg.detector = lidar_people::Detector::Legs;
+            if let Some(c) = &args.calibration {
+                cfg.calibration = lidar_people::Calibration::parse(c)?;
+            }
         }
     }
     // the flags change a validated configuration: check its cross-field rules again

@@ -138,12 +138,14 @@ fn leg_detector_on_the_real_recordings() {
     );
 }
 
-/// `jipda` with `detector = legs`. Measured (docs/lidar-people.md "Background relearn", stop
-/// 32): matched after the warm-up 162/179, 57/63, 119/175; RMSE 0.063 / 0.068 / 0.147 m;
-/// tracks living >= 1 s 6 / 3 / 10; demo scans with 1-4 tracks 1135/1245 (91.2 %; 72.4 %
-/// before the relearn fix, when wall fragments made tracks). The jipda values come from the
-/// simulated room's tuning seeds, except `jipda_max_coast_report`, chosen after these
-/// recordings (the doc says so). Thresholds: these values with a margin.
+/// `jipda` with `detector = legs`. Measured (docs/lidar-people.md "Early start", stop 33;
+/// the preset's background starts early, so every labelled scan counts: there is no warm-up):
+/// matched 165/197, 70/83, 119/175; RMSE 0.063 / 0.065 / 0.145 m; tracks living >= 1 s
+/// 7 / 3 / 7; demo scans with 1-4 tracks 1135/1265 (89.7 %). (Stop 32, scans after a 20-scan
+/// warm-up and the merge rule on legs: 162/179, 57/63, 119/175; 6 / 3 / 10 long tracks.) The
+/// jipda values come from the simulated room's tuning seeds, except `jipda_max_coast_report`
+/// and `leg_merge_distance`, chosen after these recordings (the doc says so). Thresholds:
+/// these values with a margin.
 #[test]
 fn jipda_with_legs_on_the_real_recordings() {
     let cfg = LidarPeopleConfig {
@@ -153,10 +155,10 @@ fn jipda_with_legs_on_the_real_recordings() {
     legs_on_the_real_recordings(
         &cfg,
         [
-            ("positive_1", 0.88, 0.075, 7),
-            ("positive_2", 0.88, 0.08, 4),
-            ("positive_3", 0.64, 0.17, 12),
+            ("positive_1", 0.82, 0.075, 8),
+            ("positive_2", 0.82, 0.08, 4),
+            ("positive_3", 0.64, 0.16, 9),
         ],
-        0.88,
+        0.87,
     );
 }

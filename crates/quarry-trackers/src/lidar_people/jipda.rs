@@ -395,6 +395,61 @@ mod tests {
         assert_eq!(reported, 0, "static clutter reported");
     }
 
+    /// Two walkers pass each other 0.3 m apart (as on positive_3 at t = 20.5 s), and the
+    /// nearer hides the farther for 3 frames as they pass: with legs (no merging,
+    /// `leg_merge_distance` = 0) both keep their ids; with the contour detector's merge distance
+    /// of 0.25 m the two coasting tracks are taken for one person tracked twice and one id
+    /// ends.
+    #[test]
+    fn with_legs_two_walkers_passing_close_keep_their_ids() {
+        let pair = |cx: f64, cy: f64| -> Vec<Point2> {
+            let leg = move |x: f64| {
+                (0..6).map(move |i| {
+                    let a = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
+                    Point2::new(x + 0.06 * a.cos(), cy + 0.06 * a.sin())
+                })
+            };
+            leg(cx - 0.1).chain(leg(cx + 0.1)).collect()
+        };
+        let run = |merge: f64| {
+            let cfg = LidarPeopleConfig {
+                detector: Detector::Legs,
+                leg_merge_distance: merge,
+                ..LidarPeopleConfig::preset(Preset::Jipda)
+            };
+            let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+            let mut ids = std::collections::BTreeSet::new();
+            let mut last = Vec::new();
+            for k in 0..90u64 {
+                // A along +x at y = 3.0, B along -x at y = 3.3; they meet at k = 45
+                let (xa, xb) = (0.3 + 0.06 * k as f64, 5.7 - 0.06 * k as f64);
+                let mut pts = pair(xa, 3.0);
+                if !(44..47).contains(&k) {
+                    pts.extend(pair(xb, 3.3));
+                }
+                let reps = tr.step(Stamp::from_frame(k, 0.05), &frame(k, pts)).unwrap();
+                ids.extend(reps.iter().map(|r| r.id));
+                last = tr.last_rows().to_vec();
+            }
+            (ids.len(), last)
+        };
+        let (n, last) = run(0.0);
+        assert_eq!(n, 2, "two walkers, two ids");
+        assert_eq!(last.len(), 2);
+        for (x, y) in [(0.3 + 0.06 * 89.0, 3.0), (5.7 - 0.06 * 89.0, 3.3)] {
+            assert!(
+                last.iter()
+                    .any(|t| (t.x - x).abs() < 0.2 && (t.y - y).abs() < 0.15),
+                "no track at ({x:.2}, {y}): {last:?}"
+            );
+        }
+        let (merged, _) = run(0.25);
+        assert!(
+            merged > 2,
+            "the merge rule must be what the test exercises ({merged} ids)"
+        );
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(128))]
         /// Any finite frames (people-like arcs, scattered points, empty and no-data frames,
