@@ -269,8 +269,11 @@ pub struct WatershedSiftConfig {
     /// closer than about 2σ blur into one minimum and one basin, so the paper's machinery
     /// sees one target (on PETS09-S2L1 a pair walks side by side for 160 frames: about a
     /// quarter of the ground-truth boxes, docs/video-tracker.md, diagnosis 4). No new number:
-    /// a pair is at least `fg_max_aspect` + 1/`fg_max_scale` typical widths wide (the widest
-    /// single person plus the narrowest one, at the fitted height), each part at least
+    /// the test looks for the pair within `fg_max_aspect` + 1/`fg_max_scale` typical widths
+    /// (the widest single person plus the narrowest one, at the fitted height) on each side
+    /// of O_c; the foreground there is at least two narrowest people (2/`fg_max_scale` typical
+    /// widths) wide — stop 33; the widest-plus-narrowest width required before missed slim
+    /// pairs with a clear gap, docs/video-tracker.md — each part at least
     /// 1/`fg_max_scale` typical widths wide with a column holding half the fitted height (a
     /// person's torso, not a bag or a shadow), the gap column under half the lower part's
     /// peak; only pixels darker than the background count in this test (every target is a

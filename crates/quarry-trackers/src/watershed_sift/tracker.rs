@@ -1555,7 +1555,8 @@ impl WatershedSiftTracker {
             lo.map(|lo| (lo, hi + 1))
         };
         let (a, b) = span(&cols)?;
-        if ((b - a) as f64) < pair_w {
+        // at least two narrow people wide; the gap test below tells a pair from one person
+        if ((b - a) as f64) < 2.0 * pw / s {
             return None;
         }
         // the emptiest column with a part of at least a narrow person on each side
