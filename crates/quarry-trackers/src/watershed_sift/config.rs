@@ -285,6 +285,11 @@ pub struct WatershedSiftConfig {
     /// that is the failure), takes no part in steps 1-8, is not reported while its pair is
     /// not seen and ends `lost_frames` frames after that; `min_new_separation` counts its
     /// centre, so a moving point on its person starts no second target while it lives.
+    /// Occlusion groups (stop 33): two targets tracked through an occlusion on the same
+    /// regions get no fit of their own; when their foreground passes the same pair test
+    /// (centred between them, at the height of their last fits) each is fitted to one part,
+    /// the assignment keeping each nearer its last reported box. Groups of three or more, and
+    /// pairs without a gap, keep their last fits as before.
     pub fg_pairs: bool,
     /// Smallest uncovered foreground blob for a birth, as a fraction of w·h [ours, `robust`:
     /// 0.3 — a silhouette fills about 60 % of its box; half of it must be uncovered].

@@ -1464,6 +1464,80 @@ impl WatershedSiftTracker {
                 pairs[k] = Some([host, other]);
             }
         }
+        // [ext] fg_pairs, occlusion groups: two targets tracked through an occlusion on the
+        // same regions whose foreground is a pair side by side are each fitted to one part
+        // (the assignment nearer their last reported boxes); other groups keep their last fits
+        if cfg.fg_pairs {
+            let mut groups: BTreeMap<Vec<u32>, Vec<usize>> = BTreeMap::new();
+            for (k, tg) in self.targets.iter().enumerate() {
+                if tg.occluded && !tg.regions.is_empty() {
+                    let mut key: Vec<u32> = tg.regions.iter().map(|r| r.label).collect();
+                    key.sort_unstable();
+                    key.dedup();
+                    groups.entry(key).or_default().push(k);
+                }
+            }
+            for members in groups.values().filter(|m| m.len() == 2) {
+                let (m0, m1) = (&self.targets[members[0]], &self.targets[members[1]]);
+                let c = [
+                    f64::midpoint(m0.centre[0], m1.centre[0]),
+                    f64::midpoint(m0.centre[1], m1.centre[1]),
+                ];
+                // the height of the members' last fits (the pair's people are seen at one
+                // distance), else the configured box
+                let heights: Vec<f64> = [m0, m1]
+                    .iter()
+                    .filter_map(|m| m.fit.map(|f| f[3]))
+                    .collect();
+                let fh = if heights.is_empty() {
+                    cfg.box_h
+                } else {
+                    heights.iter().sum::<f64>() / heights.len() as f64
+                };
+                let hh = cfg.fg_window * cfg.box_h;
+                let clampi = |v: f64, n: usize| v.clamp(0.0, n as f64 - 1.0) as usize;
+                let rows = (
+                    clampi((c[1] - hh).ceil(), h),
+                    clampi((c[1] + hh).floor(), h),
+                );
+                let (k0, k1) = (members[0], members[1]);
+                let split = Self::pair_split(
+                    cfg,
+                    c,
+                    fh,
+                    rows,
+                    |x, y| {
+                        let i = y * w + x;
+                        // darker than the background only, as for a single target's pair
+                        if frame.data[i].abs_diff(back[i]) <= thr || frame.data[i] > back[i] {
+                            return None;
+                        }
+                        let o = &owners[seg.labels.data[i] as usize];
+                        let own = o.contains(&k0) || o.contains(&k1);
+                        (o.is_empty() || own).then_some(own)
+                    },
+                    w,
+                );
+                if let Some((p, q)) = split {
+                    // each member keeps to the part nearer its last reported box (continuity:
+                    // the centres located through the occlusion are the less certain)
+                    let at = |m: &Target| m.report.map_or(m.centre, |b| [b.cx, b.cy]);
+                    let d = |b: &BBox, m: &Target| {
+                        let a = at(m);
+                        (b.cx - a[0]).hypot(b.cy - a[1])
+                    };
+                    let (b0, b1) = if d(&p, m0) + d(&q, m1) <= d(&q, m0) + d(&p, m1) {
+                        (p, q)
+                    } else {
+                        (q, p)
+                    };
+                    for (k, b) in [(k0, b0), (k1, b1)] {
+                        let ctr = self.targets[k].centre;
+                        fits[k] = Some([b.cx - ctr[0], b.cy - ctr[1], b.w, b.h]);
+                    }
+                }
+            }
+        }
         let (fg_box, fg_gate) = (cfg.fg_box, cfg.fg_gate);
         for (tg, fit) in self.targets.iter_mut().zip(fits) {
             if tg.regions.is_empty() {
