@@ -1055,6 +1055,7 @@ fn video_bad_input_is_a_clear_error_naming_the_file() {
     assert!(e.contains("bad.toml") && e.contains("line 2"), "{e}");
 }
 
+/// `robust` on PETS09-S2L1 frames 1-200 (read in place), scored against its ground truth.
 #[test]
 fn video_on_pets_if_present() {
     let Some(sh) = shared() else { return };
@@ -1071,8 +1072,6 @@ fn video_on_pets_if_present() {
         frames.to_str().unwrap(),
         "--gt",
         sh.join("data/pets09-s2l1/gt.txt").to_str().unwrap(),
-        "--range",
-        "1..30",
         "--person-size",
         "32x84",
         "--profile",
@@ -1083,9 +1082,15 @@ fn video_on_pets_if_present() {
     ]);
     assert_eq!(code, 0, "{stderr}");
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
-    assert_eq!(v["frames"], 30);
-    assert!(v["metrics"]["gt"].as_u64().unwrap() > 0);
-    assert!(v["tracks"].as_u64().unwrap() >= 1, "{v}");
+    assert_eq!(v["frames"], 200);
+    assert_eq!(v["metrics"]["gt"], 1223);
+    // the accuracy on real video (docs/video-tracker.md, stop 33: MOTA 0.500, IDF1 0.438,
+    // HOTA 0.343; the best peer, KNN + ByteTrack: 0.419, 0.447, 0.362), with a margin
+    let m = &v["metrics"];
+    let get = |k: &str| m[k].as_f64().unwrap();
+    assert!(get("mota") >= 0.48, "{m}");
+    assert!(get("idf1") >= 0.42, "{m}");
+    assert!(get("hota") >= 0.33, "{m}");
 }
 
 #[test]
