@@ -264,13 +264,11 @@ mod tests {
     /// A person walking across the scanner's view from the first scan, at leg height: the two
     /// legs are discs of radius 0.06 m, 0.2 m apart, the wall at 5 m; 1 m/s along y at x = 2 m.
     fn walker_scans() -> (ScanGeometry, Vec<PolarScan>) {
+        // half-degree beams: a leg at 2 m spans three or more
         let g = ScanGeometry {
             n_beams: 361,
-            angle_min: -std::f64::consts::FRAC_PI_2,
             angle_increment: std::f64::consts::PI / 360.0,
-            range_min: 0.05,
-            range_max: 10.0,
-            scan_period: 0.1,
+            ..geom()
         };
         let scans = (0..60)
             .map(|k| {
