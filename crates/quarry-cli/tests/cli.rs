@@ -193,6 +193,65 @@ fn absurd_sizes_are_refused_before_allocating() {
     }
 }
 
+/// `quarry demo --data DIR`: the real-data rows where DIR holds the recordings, a note and no
+/// rows where it does not.
+#[test]
+fn demo_real_rows_with_data_and_a_note_without() {
+    let d = tmpdir("demo-no-data");
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "demo",
+        "--only",
+        "real",
+        "--data",
+        d.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["rows"].as_array().unwrap().len(), 0, "{v}");
+    assert!(
+        stderr.contains("skipping the leg-tracker/positive_1 row"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("skipping the pets09-s2l1 row"), "{stderr}");
+    let Some(sh) = shared() else { return };
+    let data = sh.join("data");
+    if !data.join("leg-tracker/positive_1_scans.csv").exists()
+        || !data.join("pets09-s2l1/gt.txt").exists()
+    {
+        eprintln!("skipping the real rows: no {}", data.display());
+        return;
+    }
+    // the leg row only: the PETS row runs the same 200 frames as `video_on_pets_if_present`
+    // (13 s in the dev profile), through the same scoring
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "demo",
+        "--only",
+        "lidar-legs-real",
+        "--data",
+        data.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let value = |tracker: &str, metric: &str| {
+        v["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["tracker"] == tracker && r["metric"].as_str().unwrap().starts_with(metric))
+            .and_then(|r| r["value"].as_f64())
+            .unwrap_or_else(|| panic!("no {tracker} {metric} row: {v}"))
+    };
+    // the figures of docs/lidar-people.md (stop 33), with a margin
+    assert!(value("lidar-legs (real)", "labelled scans") >= 80.0, "{v}");
+    assert!(
+        value("lidar-legs (real)", "person position RMSE") <= 0.075,
+        "{v}"
+    );
+    assert_eq!(v["rows"].as_array().unwrap().len(), 3, "{v}");
+}
+
 #[test]
 fn demo_json_reports_kf_rmse() {
     let (code, stdout, stderr) = quarry(&["demo", "--json"]);

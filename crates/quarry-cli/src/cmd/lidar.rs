@@ -1183,6 +1183,58 @@ fn plot_recorded(
     })
 }
 
+/// `quarry demo --data DIR`: the `jipda` preset with the leg detector on the real leg-height
+/// recording `DIR/leg-tracker/positive_1` (docs/lidar-people.md), scored against its labels.
+/// `Ok(None)` when the recording is not there.
+pub fn demo_real_rows(data: &Path) -> Result<Option<Vec<super::demo::Row>>, CmdError> {
+    let dir = data.join("leg-tracker");
+    let scans = dir.join("positive_1_scans.csv");
+    if !scans.exists() {
+        return Ok(None);
+    }
+    let meta = dir.join("scan_meta.json");
+    let meta_text = std::fs::read_to_string(&meta).map_err(at(&meta))?;
+    let geometry = parse_scan_meta(&meta_text, "positive_1")
+        .map_err(|e| format!("{}: {e}", meta.display()))?;
+    let (polar, _) = read_scans(&scans, geometry, ScanCsvOptions::default())
+        .map_err(|e| format!("{}: {e}", scans.display()))?;
+    let cfg = LidarPeopleConfig {
+        detector: lidar_people::Detector::Legs,
+        ..LidarPeopleConfig::jipda()
+    };
+    let t = std::time::Instant::now();
+    let run = lidar_people::run_recorded(&cfg, &geometry, Pose2::default(), &polar, 3.0)?;
+    let ms = t.elapsed().as_secs_f64() * 1e3 / polar.len().max(1) as f64;
+    let legs = dir.join("positive_1_legs.csv");
+    let text = std::fs::read_to_string(&legs).map_err(at(&legs))?;
+    let labels = parse_legs_csv(&text).map_err(|e| format!("{}: {e}", legs.display()))?;
+    let e = score_labelled(&run, &labels, cfg.d_match)?;
+    let min_scans = (1.0 / geometry.scan_period).ceil() as usize;
+    let long = run
+        .track_lifetimes()
+        .iter()
+        .filter(|(_, l)| *l >= min_scans)
+        .count();
+    let row = |metric: &str, value: f64| super::demo::Row {
+        tracker: "lidar-legs (real)".into(),
+        scenario:
+            "leg-tracker positive_1 (one leg-height scanner, 400 scans), jipda preset, leg detector"
+                .into(),
+        metric: metric.into(),
+        value,
+        paper: None,
+        ms_per_frame: Some(ms),
+    };
+    Ok(Some(vec![
+        row(
+            "labelled scans with a track within 0.5 m (%)",
+            100.0 * e.matched as f64 / e.labelled.max(1) as f64,
+        ),
+        row("person position RMSE (m)", e.rmse_m),
+        row("tracks living >= 1 s", long as f64),
+    ]))
+}
+
 /// The `quarry demo` rows: `faithful`, then `jipda`, on `band_mid` (seed `seed`, 600 evaluated
 /// frames = 30 s): success rate and mean localisation error beside the paper's 90.88 % and
 /// 0.18 m, MOTA and IDF1.
