@@ -624,7 +624,15 @@ impl ChiSquareBackground {
             })
             .collect();
         self.update_long_term(scan, &is_static, &window_static);
-        if let Some(tol) = self.cfg.early_start {
+        // the farthest readings serve the early test (first window / 2 scans) and stand in for
+        // b_n until it is learned; after both, nothing reads them
+        if let Some(tol) = self.cfg.early_start
+            && (2 * self.scans < m as u64
+                || self
+                    .cfg
+                    .long_term
+                    .is_some_and(|lt| self.scans < lt.warm_scans as u64))
+        {
             self.early_update(scan, tol);
         }
         // push the scan into the window

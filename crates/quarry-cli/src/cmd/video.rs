@@ -287,6 +287,26 @@ fn annotate(grey: &Plane<u8>, rows: &[(MotRow, bool, usize)], font: &FontRef<'_>
     img
 }
 
+/// The MOTChallenge row of report `r` in 1-based frame `frame_no` (1-based left/top, as the
+/// ground truth); `None` for a report without a box.
+fn mot_row(frame_no: u64, r: &quarry_core::TrackReport) -> Option<MotRow> {
+    let [l, tp, bw, bh] = r.bbox?.to_ltwh();
+    Some(MotRow {
+        frame: frame_no,
+        id: i64::from(r.id.0),
+        bbox: [l + 1.0, tp + 1.0, bw, bh],
+        conf: 1.0,
+        extra: [None; 3],
+    })
+}
+
+/// The scores of `rows` against `gt` at IoU 0.5, as `quarry eval` computes them.
+fn score(gt: &[GtRow], rows: &[MotRow]) -> Result<EvalReport, CmdError> {
+    let frames = to_frames(gt, rows, 0.5)?;
+    let summary = MotEvaluation::new(&frames, &Iou::new(0.5)?)?.summary()?;
+    Ok(EvalReport::new(&summary, None, 0.5))
+}
+
 /// Runs `quarry video` (or `quarry video sim`).
 pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
     if let Some(VideoSub::Sim(a)) = &args.sub {
@@ -372,14 +392,8 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
         processed += 1;
         let mut drawn = Vec::new();
         for r in &reports {
-            let Some(bb) = r.bbox else { continue };
-            let [l, tp, bw, bh] = bb.to_ltwh();
-            let row = MotRow {
-                frame: frame_no,
-                id: i64::from(r.id.0),
-                bbox: [l + 1.0, tp + 1.0, bw, bh],
-                conf: 1.0,
-                extra: [None; 3],
+            let Some(row) = mot_row(frame_no, r) else {
+                continue;
             };
             let pool = tracker
                 .targets()
@@ -426,10 +440,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
                 .filter(|g| g.frame >= a as u64 && g.frame <= last)
                 .copied()
                 .collect();
-            let sim = Iou::new(0.5)?;
-            let frames = to_frames(&gt, &rows, 0.5)?;
-            let summary = MotEvaluation::new(&frames, &sim)?.summary()?;
-            Some(EvalReport::new(&summary, None, 0.5))
+            Some(score(&gt, &rows)?)
         }
         None => None,
     };
@@ -528,22 +539,10 @@ pub fn demo_real_rows(data: &Path) -> Result<Option<Vec<super::demo::Row>>, CmdE
             .step(Stamp::from_frame(k as u64, 1.0), &grey)
             .map_err(|e| format!("frame {}: {e}", path.display()))?;
         ms += t.elapsed().as_secs_f64() * 1e3;
-        for r in &reports {
-            let Some(bb) = r.bbox else { continue };
-            let [l, tp, bw, bh] = bb.to_ltwh();
-            rows.push(MotRow {
-                frame: k as u64 + 1,
-                id: i64::from(r.id.0),
-                bbox: [l + 1.0, tp + 1.0, bw, bh],
-                conf: 1.0,
-                extra: [None; 3],
-            });
-        }
+        rows.extend(reports.iter().filter_map(|r| mot_row(k as u64 + 1, r)));
     }
     let gt: Vec<GtRow> = gt.into_iter().filter(|g| g.frame <= n as u64).collect();
-    let frames = to_frames(&gt, &rows, 0.5)?;
-    let s = MotEvaluation::new(&frames, &Iou::new(0.5)?)?.summary()?;
-    let r = EvalReport::new(&s, None, 0.5);
+    let r = score(&gt, &rows)?;
     let row = |metric: &str, value: f64| super::demo::Row {
         tracker: "watershed-sift (real)".into(),
         scenario: format!(

@@ -228,6 +228,26 @@ mod tests {
         }
     }
 
+    /// Two legs at leg height: the near halves (6 points) of discs of radius 0.06 m centred at
+    /// x = `a` and x = `b`, y = `y`.
+    fn legs(a: f64, b: f64, y: f64) -> Vec<Point2> {
+        let leg = move |x: f64| {
+            (0..6).map(move |i| {
+                let t = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
+                Point2::new(x + 0.06 * t.cos(), y + 0.06 * t.sin())
+            })
+        };
+        leg(a).chain(leg(b)).collect()
+    }
+
+    /// The `jipda` preset with the leg detector.
+    fn legs_cfg() -> LidarPeopleConfig {
+        LidarPeopleConfig {
+            detector: Detector::Legs,
+            ..LidarPeopleConfig::preset(Preset::Jipda)
+        }
+    }
+
     #[test]
     fn one_walker_keeps_one_id_through_a_half_second_occlusion() {
         let cfg = LidarPeopleConfig::preset(Preset::Jipda);
@@ -313,23 +333,10 @@ mod tests {
 
     #[test]
     fn with_legs_a_standing_pair_is_not_reported_until_it_walks() {
-        let cfg = LidarPeopleConfig {
-            detector: Detector::Legs,
-            ..LidarPeopleConfig::preset(Preset::Jipda)
-        };
-        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
-        let leg = |cx: f64, cy: f64| -> Vec<Point2> {
-            (0..6)
-                .map(|i| {
-                    let a = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
-                    Point2::new(cx + 0.06 * a.cos(), cy + 0.06 * a.sin())
-                })
-                .collect()
-        };
+        let mut tr = DefaultLidarTracker::from_config(&legs_cfg()).unwrap();
         let mut reported_while_standing = 0;
         for k in 0..30u64 {
-            let mut pts = leg(2.0, 3.0);
-            pts.extend(leg(2.3, 3.0));
+            let pts = legs(2.0, 2.3, 3.0);
             reported_while_standing += tr
                 .step(Stamp::from_frame(k, 0.05), &frame(k, pts))
                 .unwrap()
@@ -339,8 +346,7 @@ mod tests {
         let mut seen = 0;
         for k in 30..60u64 {
             let x = 2.0 + 0.06 * (k - 30) as f64;
-            let mut pts = leg(x, 3.0);
-            pts.extend(leg(x + 0.3, 3.0));
+            let pts = legs(x, x + 0.3, 3.0);
             seen += tr
                 .step(Stamp::from_frame(k, 0.05), &frame(k, pts))
                 .unwrap()
@@ -355,20 +361,8 @@ mod tests {
     /// stood, is never reported.
     #[test]
     fn with_legs_a_coasting_drift_is_not_travel() {
-        let cfg = LidarPeopleConfig {
-            detector: Detector::Legs,
-            ..LidarPeopleConfig::preset(Preset::Jipda)
-        };
-        let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
-        let pair = |cx: f64| -> Vec<Point2> {
-            let leg = |x: f64| {
-                (0..6).map(move |i| {
-                    let a = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
-                    Point2::new(x + 0.06 * a.cos(), 3.0 + 0.06 * a.sin())
-                })
-            };
-            leg(cx).chain(leg(cx + 0.3)).collect()
-        };
+        let mut tr = DefaultLidarTracker::from_config(&legs_cfg()).unwrap();
+        let pair = |cx: f64| legs(cx, cx + 0.3, 3.0);
         let mut reported = 0;
         let mut max_drift: f64 = 0.0;
         for k in 0..70u64 {
@@ -402,20 +396,11 @@ mod tests {
     /// ends.
     #[test]
     fn with_legs_two_walkers_passing_close_keep_their_ids() {
-        let pair = |cx: f64, cy: f64| -> Vec<Point2> {
-            let leg = move |x: f64| {
-                (0..6).map(move |i| {
-                    let a = std::f64::consts::PI * (1.0 + f64::from(i) / 6.0);
-                    Point2::new(x + 0.06 * a.cos(), cy + 0.06 * a.sin())
-                })
-            };
-            leg(cx - 0.1).chain(leg(cx + 0.1)).collect()
-        };
+        let pair = |cx: f64, cy: f64| legs(cx - 0.1, cx + 0.1, cy);
         let run = |merge: f64| {
             let cfg = LidarPeopleConfig {
-                detector: Detector::Legs,
                 leg_merge_distance: merge,
-                ..LidarPeopleConfig::preset(Preset::Jipda)
+                ..legs_cfg()
             };
             let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
             let mut ids = std::collections::BTreeSet::new();
