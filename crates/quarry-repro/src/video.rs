@@ -184,7 +184,7 @@ pub fn run_walkers(
             let Some(bbox) = r.bbox else { continue };
             let pool = targets
                 .iter()
-                .find(|x| x.id == r.id)
+                .find(|x| x.report_id == r.id)
                 .map_or(0, |x| x.pool.len());
             boxes.push(ReportedBox {
                 t,
@@ -197,7 +197,7 @@ pub fn run_walkers(
         pools.extend(
             targets
                 .iter()
-                .map(|x| (t, x.id.0, x.pool.len(), x.occluded)),
+                .map(|x| (t, x.report_id.0, x.pool.len(), x.occluded)),
         );
         progress(t + 1);
     }

@@ -398,7 +398,7 @@ pub fn run(args: &VideoArgs, out: &Output) -> CmdResult {
             let pool = tracker
                 .targets()
                 .iter()
-                .find(|t| t.id == r.id)
+                .find(|t| t.report_id == r.id)
                 .map_or(0, |t| t.pool.len());
             drawn.push((row, r.status == TrackStatus::Occluded, pool));
             rows.push(row);

@@ -254,6 +254,20 @@ pub struct WatershedSiftConfig {
     /// centre leaves the group's region, the group dissolves, and the target holds only the
     /// group's region, which its partner wins: the target is lost (finding 3).
     pub occluded_hold_located: bool,
+    /// A lost person's id comes back \[ext, ours; `robust`: true\]: a target reported for the
+    /// first time takes the id of a *lost* target — one that ended, or is alive but not
+    /// reported this frame, and was last reported at most `lost_frames` frames ago — when its
+    /// box centre lies within `box_w` (one typical person width) of where the lost target's
+    /// last box would be now, moved at the velocity of its last five reported boxes; nearest
+    /// pairs first, each lost id at most once. A live lost target whose id is taken ends (its
+    /// person is the new target's). On PETS09-S2L1 a person whose target loses its regions
+    /// or its foreground for a few frames (a crossing, a group) comes back as a new target a
+    /// few frames later, a few pixels from where they were going: a new id each time. The
+    /// peers' ByteTrack keeps lost tracks for re-association the same way (for 1 s); here the
+    /// window is `lost_frames`, the time the paper already keeps a target without regions
+    /// alive, and the gate one box width: no new number. Only the reported ids change; the
+    /// targets' own `id`s, their pools and all tracking steps are as without it.
+    pub recall_ids: bool,
     /// Background regions take no part in steps 4 and 6 \[ext, ours; `robust`: true\]: a
     /// region holding fewer than `fg_min_frac`/4 · w·h foreground pixels is not a candidate
     /// fragment for the SIFT ownership test (step 4) and its moving point neither joins nor
@@ -361,6 +375,7 @@ impl WatershedSiftConfig {
             fg_births: false,
             births_wait_for_occluded: false,
             occluded_hold_located: false,
+            recall_ids: false,
             fg_skip_background: false,
             fg_pairs: false,
             birth_min_frac: 0.3,
@@ -385,6 +400,7 @@ impl WatershedSiftConfig {
             fg_births: true,
             births_wait_for_occluded: true,
             occluded_hold_located: true,
+            recall_ids: true,
             fg_skip_background: true,
             fg_pairs: true,
             bg_selective: true,

@@ -100,6 +100,39 @@ pub struct Target {
     pair_streak: usize,
     /// The centres of the target's part and of the other part when the streak began.
     pair_first: [[f64; 2]; 2],
+    /// The id this target is reported under: its own [`id`](Self::id), or with `recall_ids`
+    /// the id of a lost target whose person it was found on (docs of `recall_ids`).
+    pub report_id: TrackId,
+    /// The last frames this target was reported in: (frame, box centre), at most
+    /// [`RECALL_VELOCITY_FRAMES`] + 1 of them (`recall_ids`).
+    reported: VecDeque<(u64, [f64; 2])>,
+}
+
+/// Frames over which a lost target's velocity is measured for `recall_ids`: its last five
+/// reported boxes (under a second at PETS09's 7 fps; long enough to average the fitted
+/// boxes' jitter of a few pixels, short enough to follow a turn).
+const RECALL_VELOCITY_FRAMES: usize = 5;
+
+/// A target that ended while `recall_ids` may still hand its id to a newborn.
+#[derive(Debug, Clone)]
+struct Ended {
+    id: TrackId,
+    last: u64,
+    centre: [f64; 2],
+    velocity: [f64; 2],
+}
+
+/// Last reported frame, box centre and velocity (px per frame) of `reported`.
+fn last_motion(reported: &VecDeque<(u64, [f64; 2])>) -> Option<(u64, [f64; 2], [f64; 2])> {
+    let &(f1, c1) = reported.back()?;
+    let &(f0, c0) = reported.front()?;
+    let v = if f1 > f0 {
+        let dt = (f1 - f0) as f64;
+        [(c1[0] - c0[0]) / dt, (c1[1] - c0[1]) / dt]
+    } else {
+        [0.0; 2]
+    };
+    Some((f1, c1, v))
 }
 
 impl Target {
@@ -132,6 +165,8 @@ impl Target {
             host: None,
             pair_streak: 0,
             pair_first: [[0.0; 2]; 2],
+            report_id: id,
+            reported: VecDeque::new(),
         }
     }
 }
@@ -375,6 +410,8 @@ pub struct WatershedSiftTracker {
     /// Foreground birth candidates of the last frame: blob box `[x0, y0, x1, y1)` and the
     /// number of consecutive frames it was seen.
     birth_candidates: Vec<([f64; 4], usize)>,
+    /// Targets ended within the last `lost_frames` frames (`recall_ids`).
+    ended: Vec<Ended>,
 }
 
 /// `p` rounded half away from zero and clamped into a `w × h` image.
@@ -405,6 +442,7 @@ impl WatershedSiftTracker {
             frames: 0,
             diagnostics: FrameDiagnostics::default(),
             birth_candidates: Vec::new(),
+            ended: Vec::new(),
             background: if cfg.fg_box || cfg.fg_gate || cfg.fg_births {
                 Some(MedianBackground::new(cfg.background_params())?)
             } else {
@@ -1201,6 +1239,7 @@ impl WatershedSiftTracker {
         let (fw, fh) = (f64::from(w) - 1.0, f64::from(h) - 1.0);
         let before = self.targets.len();
         let cfg = &self.cfg;
+        let ended = &mut self.ended;
         self.targets.retain_mut(|tg| {
             tg.history.push_back(tg.centre);
             let origin = tg.origin.get_or_insert(tg.centre);
@@ -1226,7 +1265,19 @@ impl WatershedSiftTracker {
             let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px)
                 && !(cfg.stuck_needs_no_fg && tg.moved && tg.no_fg == 0 && tg.report.is_some());
             let lost = tg.lost > cfg.lost_frames || tg.no_fg > cfg.lost_frames;
-            !(exit || stuck || lost)
+            let end = exit || stuck || lost;
+            if end
+                && cfg.recall_ids
+                && let Some((last, centre, velocity)) = last_motion(&tg.reported)
+            {
+                ended.push(Ended {
+                    id: tg.report_id,
+                    last,
+                    centre,
+                    velocity,
+                });
+            }
+            !end
         });
         let terminated = before - self.targets.len();
         let ids: BTreeSet<TrackId> = self.targets.iter().map(|t| t.id).collect();
@@ -1240,17 +1291,28 @@ impl WatershedSiftTracker {
         let t_track = t2.elapsed().as_secs_f64() * 1e6 - sift_us - t_fit - t_fgr;
 
         // ----- reports -----
+        let report_after = self.cfg.report_after as u64;
+        let shown = |tg: &Target| {
+            tg.report.is_some()
+                && !(tg.regions.is_empty() && tg.host.is_none())
+                && t >= tg.born + report_after
+        };
+        let show: Vec<bool> = self.targets.iter().map(shown).collect();
+        if self.cfg.recall_ids {
+            self.recall(&show, t);
+        }
         let mut reports = Vec::new();
-        for tg in &self.targets {
-            let Some(bbox) = tg.report else { continue };
-            if (tg.regions.is_empty() && tg.host.is_none())
-                || t < tg.born + self.cfg.report_after as u64
-            {
+        for tg in &mut self.targets {
+            let Some(bbox) = tg.report.filter(|_| shown(tg)) else {
                 continue;
+            };
+            tg.reported.push_back((t, [bbox.cx, bbox.cy]));
+            while tg.reported.len() > RECALL_VELOCITY_FRAMES + 1 {
+                tg.reported.pop_front();
             }
             let mut r = TrackReport::new(
                 stamp,
-                tg.id,
+                tg.report_id,
                 if tg.occluded {
                     TrackStatus::Occluded
                 } else {
@@ -2016,6 +2078,90 @@ impl WatershedSiftTracker {
 
     /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
     /// consecutive frames: the younger (larger id) joins the older.
+    /// `recall_ids`: each target reported for the first time this frame (`show`) takes the id
+    /// of a lost target — one that ended, or is alive but not reported this frame, and was
+    /// last reported at most `lost_frames` frames ago — when its box centre lies within
+    /// `box_w` of where the lost target's last box would be by now at the velocity of its
+    /// last reported frames; nearest pairs first. A live lost target whose id is taken ends.
+    fn recall(&mut self, show: &[bool], t: u64) {
+        /// Where a lost target is kept: `ended[i]`, or `targets[k]` (alive, unreported).
+        #[derive(Clone, Copy)]
+        enum Source {
+            Ended(usize),
+            Live(usize),
+        }
+        let window = self.cfg.lost_frames as u64;
+        self.ended.retain(|e| t.saturating_sub(e.last) <= window);
+        let mut lost: Vec<(Source, Ended)> = self
+            .ended
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (Source::Ended(i), e.clone()))
+            .collect();
+        for (k, tg) in self.targets.iter().enumerate() {
+            // a target hosting a companion stays (the companion lives on its host's pair)
+            if show[k] || self.targets.iter().any(|o| o.host == Some(tg.id)) {
+                continue;
+            }
+            if let Some((last, centre, velocity)) = last_motion(&tg.reported)
+                && t - last <= window
+            {
+                let e = Ended {
+                    id: tg.report_id,
+                    last,
+                    centre,
+                    velocity,
+                };
+                lost.push((Source::Live(k), e));
+            }
+        }
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (k, tg) in self.targets.iter().enumerate() {
+            let Some(b) = tg.report.filter(|_| show[k] && tg.reported.is_empty()) else {
+                continue;
+            };
+            for (i, (_, e)) in lost.iter().enumerate() {
+                if e.last >= t {
+                    continue;
+                }
+                let dt = (t - e.last) as f64;
+                let (c, v) = (e.centre, e.velocity);
+                let d = (b.cx - (c[0] + v[0] * dt)).hypot(b.cy - (c[1] + v[1] * dt));
+                if d <= self.cfg.box_w {
+                    pairs.push((d, k, i));
+                }
+            }
+        }
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let (mut used_k, mut used_i) = (BTreeSet::new(), BTreeSet::new());
+        let mut gone_targets = BTreeSet::new();
+        let mut gone_ended = BTreeSet::new();
+        for (_, k, i) in pairs {
+            if used_k.contains(&k) || used_i.contains(&i) {
+                continue;
+            }
+            used_k.insert(k);
+            used_i.insert(i);
+            self.targets[k].report_id = lost[i].1.id;
+            match lost[i].0 {
+                Source::Ended(e) => gone_ended.insert(e),
+                Source::Live(o) => gone_targets.insert(o),
+            };
+        }
+        let mut e = 0;
+        self.ended.retain(|_| {
+            e += 1;
+            !gone_ended.contains(&(e - 1))
+        });
+        if !gone_targets.is_empty() {
+            let mut k = 0;
+            self.targets.retain(|_| {
+                k += 1;
+                !gone_targets.contains(&(k - 1))
+            });
+        }
+    }
+
     fn fuse(&mut self) {
         let n = self.targets.len();
         let visible = |t: &Target| !t.occluded && !t.regions.is_empty();
@@ -2104,4 +2250,138 @@ impl MultiTargetTracker for WatershedSiftTracker {
 /// Reads a mapping's relation counts (used by the diagnostics of callers).
 pub fn mapping_counts(map: &RegionMapping) -> (usize, usize, usize) {
     (map.bidirectional.len(), map.merges.len(), map.splits.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A robust tracker for a 32×84 person (box_w = 32, lost_frames = 10).
+    fn tracker() -> WatershedSiftTracker {
+        WatershedSiftTracker::new(WatershedSiftConfig::robust().with_person_size(32.0, 84.0))
+            .unwrap()
+    }
+
+    /// A target `id` reported in frames `from..=to` moving from `c0` at `v` px per frame; not
+    /// reported now.
+    fn lost_target(
+        tr: &WatershedSiftTracker,
+        id: u32,
+        from: u64,
+        to: u64,
+        c0: [f64; 2],
+        v: [f64; 2],
+    ) -> Target {
+        let mut tg = Target::start(
+            TrackId(id),
+            c0,
+            Vec::new(),
+            WeightedPool::new(tr.cfg.pool_params()).unwrap(),
+            from,
+        );
+        for f in from..=to {
+            let d = (f - from) as f64;
+            tg.reported
+                .push_back((f, [c0[0] + v[0] * d, c0[1] + v[1] * d]));
+            while tg.reported.len() > RECALL_VELOCITY_FRAMES + 1 {
+                tg.reported.pop_front();
+            }
+        }
+        tg
+    }
+
+    /// A target `id` born now and reported for the first time at `c`.
+    fn newborn(tr: &WatershedSiftTracker, id: u32, t: u64, c: [f64; 2]) -> Target {
+        let mut tg = Target::start(
+            TrackId(id),
+            c,
+            Vec::new(),
+            WeightedPool::new(tr.cfg.pool_params()).unwrap(),
+            t,
+        );
+        tg.report = Some(BBox {
+            cx: c[0],
+            cy: c[1],
+            w: 30.0,
+            h: 80.0,
+        });
+        tg
+    }
+
+    fn report_ids(tr: &WatershedSiftTracker) -> Vec<(u32, u32)> {
+        tr.targets.iter().map(|t| (t.id.0, t.report_id.0)).collect()
+    }
+
+    /// A lost live target's id goes to the newborn where it was going (its last box moved at
+    /// its velocity), and the lost target ends; a newborn elsewhere keeps its own id.
+    #[test]
+    fn a_newborn_where_a_lost_target_was_going_takes_its_id() {
+        let mut tr = tracker();
+        // reported in frames 10-14 at 4 px/frame: at frame 17 it would be at x = 116 + 12
+        let a = lost_target(&tr, 1, 10, 14, [100.0, 200.0], [4.0, 0.0]);
+        let b = newborn(&tr, 2, 17, [131.0, 202.0]);
+        let c = newborn(&tr, 3, 17, [300.0, 200.0]);
+        tr.targets = vec![a, b, c];
+        tr.recall(&[false, true, true], 17);
+        assert_eq!(report_ids(&tr), vec![(2, 1), (3, 3)]);
+    }
+
+    /// The gate is one box width around the predicted place (at rest: the last place), the
+    /// window `lost_frames` frames after the last report.
+    #[test]
+    fn recall_is_gated_in_space_and_time() {
+        for (t, x, recalled) in [
+            (24, 110.0 + 31.0, true),  // 10 frames after the last report, 31 px away
+            (24, 110.0 + 33.0, false), // 33 px: outside one box width
+            (25, 110.0, false),        // 11 frames after the last report
+        ] {
+            let mut tr = tracker();
+            let a = lost_target(&tr, 1, 10, 14, [110.0, 200.0], [0.0, 0.0]);
+            let b = newborn(&tr, 2, t, [x, 200.0]);
+            tr.targets = vec![a, b];
+            tr.recall(&[false, true], t);
+            let ids = report_ids(&tr);
+            if recalled {
+                assert_eq!(ids, vec![(2, 1)], "t {t} x {x}");
+            } else {
+                assert_eq!(ids, vec![(1, 1), (2, 2)], "t {t} x {x}");
+            }
+        }
+    }
+
+    /// Nearest pairs first and each lost id once: of two newborns near one lost target the
+    /// nearer takes its id; an ended target's id is recalled once and then forgotten; a
+    /// target hosting a companion is not taken.
+    #[test]
+    fn recall_takes_nearest_pairs_first_and_each_id_once() {
+        let mut tr = tracker();
+        let a = lost_target(&tr, 1, 10, 14, [100.0, 200.0], [0.0, 0.0]);
+        let far = newborn(&tr, 2, 16, [120.0, 200.0]);
+        let near = newborn(&tr, 3, 16, [105.0, 200.0]);
+        tr.targets = vec![a, far, near];
+        tr.recall(&[false, true, true], 16);
+        assert_eq!(report_ids(&tr), vec![(2, 2), (3, 1)]);
+
+        let mut tr = tracker();
+        tr.ended.push(Ended {
+            id: TrackId(7),
+            last: 14,
+            centre: [100.0, 200.0],
+            velocity: [2.0, 0.0],
+        });
+        tr.targets = vec![newborn(&tr, 8, 16, [104.0, 200.0])];
+        tr.recall(&[true], 16);
+        assert_eq!(report_ids(&tr), vec![(8, 7)]);
+        assert!(tr.ended.is_empty());
+
+        let mut tr = tracker();
+        let host = lost_target(&tr, 1, 10, 14, [100.0, 200.0], [0.0, 0.0]);
+        let mut companion = newborn(&tr, 2, 12, [140.0, 200.0]);
+        companion.host = Some(TrackId(1));
+        companion.reported.push_back((14, [140.0, 200.0]));
+        let b = newborn(&tr, 3, 16, [101.0, 200.0]);
+        tr.targets = vec![host, companion, b];
+        tr.recall(&[false, true, true], 16);
+        assert_eq!(report_ids(&tr), vec![(1, 1), (2, 2), (3, 3)]);
+    }
 }
