@@ -45,6 +45,7 @@ fuzz_target!(|data: &[u8]| {
         t_warm_s: 0.5,
         detector,
         bg_early_start_m: if pick & 8 != 0 { 0.1 } else { 0.0 },
+        bg_sparse_beams: pick & 16 != 0,
         ..LidarPeopleConfig::preset(preset)
     };
     if let Ok(run) = run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0) {

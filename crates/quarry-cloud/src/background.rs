@@ -241,6 +241,14 @@ pub struct LongTermConfig {
     /// covers genuine background changes, so the update may be restricted to readings that
     /// already agree with `b_n` (default `true`; `false` reproduces the ungated rule).
     pub gated_update: bool,
+    /// Beams that return only now and then (not in spec 003; `false` = the spec): a beam with
+    /// fewer than `min_valid_fraction` valid warm-up readings still gets a `b_n` when at least
+    /// half of its valid warm-up readings, and at least two, lie within `τ_g` of their median
+    /// (`b_n` = that median). A dark, shiny or distant surface that returns in a quarter of the
+    /// scans at one range is background; without a `b_n` such a beam is dynamic by rule (3)
+    /// whenever it returns, and its returns become leg-sized clusters that never move
+    /// (docs/lidar-people.md, "Beams that return now and then").
+    pub sparse_beams: bool,
 }
 
 impl Default for LongTermConfig {
@@ -251,6 +259,7 @@ impl Default for LongTermConfig {
             alpha: 0.02,
             relearn_scans: 80,
             gated_update: true,
+            sparse_beams: false,
         }
     }
 }
@@ -745,6 +754,22 @@ impl ChiSquareBackground {
                     0.5 * (f64::from(v[v.len() / 2 - 1]) + f64::from(v[v.len() / 2]))
                 };
                 self.background[n] = Some(med * 1e-3);
+            } else if lt.sparse_beams && v.len() >= 2 {
+                // a beam that returns now and then at one range: that range, if it is the
+                // range of at least half its returns (and of two or more)
+                let med = if v.len() % 2 == 1 {
+                    f64::from(v[v.len() / 2])
+                } else {
+                    0.5 * (f64::from(v[v.len() / 2 - 1]) + f64::from(v[v.len() / 2]))
+                } * 1e-3;
+                let tol = (3.0 * sigma_d(med)).max(0.03);
+                let near = v
+                    .iter()
+                    .filter(|&&x| (f64::from(x) * 1e-3 - med).abs() <= tol)
+                    .count();
+                if near >= 2 && 2 * near >= v.len() {
+                    self.background[n] = Some(med);
+                }
             }
             if let SigmaMode::Learned { floor } = self.cfg.sigma {
                 let std = if v.len() >= 2 {
@@ -1210,6 +1235,66 @@ mod tests {
             self.k += 1;
             self.bg.classify_scan(&scan1(self.k, mm)).unwrap()[0]
         }
+    }
+
+    /// `sparse_beams`: a beam that returns in one scan of four, always at 3 m (a dark surface),
+    /// is background after the warm-up with it and dynamic at every return without it (rule
+    /// (3): under half the window valid, and no `b_n`); a person at 1.5 m on that beam is
+    /// dynamic either way; returns scattered over many ranges give no `b_n`.
+    #[test]
+    fn a_beam_that_returns_now_and_then_at_one_range_is_background() {
+        fn model(sparse: bool) -> ChiSquareBackground {
+            ChiSquareBackground::new(
+                &one_beam_geometry(),
+                ChiSquareConfig {
+                    region_constraint: false,
+                    long_term: Some(LongTermConfig {
+                        warm_scans: 100,
+                        sparse_beams: sparse,
+                        ..LongTermConfig::default()
+                    }),
+                    ..ChiSquareConfig::default()
+                },
+            )
+            .unwrap()
+        }
+        fn label(bg: &mut ChiSquareBackground, k: u32, mm: u16) -> BeamLabel {
+            bg.classify_scan(&scan1(k, mm)).unwrap()[0]
+        }
+        for sparse in [false, true] {
+            let mut bg = model(sparse);
+            let mut after = Vec::new();
+            for k in 0..200u32 {
+                let l = label(&mut bg, k, if k % 4 == 0 { 3000 } else { 0 });
+                if k >= 100 && k % 4 == 0 {
+                    after.push(l);
+                }
+            }
+            let expect = if sparse {
+                BeamLabel::Static
+            } else {
+                BeamLabel::Dynamic
+            };
+            assert!(
+                after.iter().all(|&l| l == expect),
+                "sparse {sparse}: {after:?}"
+            );
+            assert_eq!(
+                label(&mut bg, 200, 1500),
+                BeamLabel::Dynamic,
+                "sparse {sparse}"
+            );
+        }
+        let mut bg = model(true);
+        for k in 0..100u32 {
+            let mm = if k % 4 == 0 {
+                1000 + (k * 37 % 4000) as u16
+            } else {
+                0
+            };
+            label(&mut bg, k, mm);
+        }
+        assert_eq!(label(&mut bg, 100, 3000), BeamLabel::Dynamic);
     }
 
     /// The relearn run counts only window-test statics. With T_relearn shorter than the window

@@ -959,6 +959,7 @@ pub fn background_of(
             alpha: cfg.alpha_b,
             relearn_scans: per_scan(cfg.t_relearn_s) as u32,
             gated_update: cfg.bg_gated_update,
+            sparse_beams: cfg.bg_sparse_beams,
         }),
         early_start: (cfg.bg_early_start_m > 0.0).then_some(cfg.bg_early_start_m),
     };
