@@ -174,7 +174,9 @@ impl Target {
 /// Per-target diagnostics of one frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TargetDiagnostics {
-    /// Target id.
+    /// The target's own id ([`Target::id`]; the occlusion groups of [`FrameDiagnostics`] use
+    /// it too). Its boxes are reported under [`Target::report_id`], which differs after
+    /// `recall_ids` handed it a lost target's id.
     pub id: u32,
     /// Centre O_c.
     pub centre: [f64; 2],
