@@ -2078,8 +2078,6 @@ impl WatershedSiftTracker {
         Ok(created)
     }
 
-    /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
-    /// consecutive frames: the younger (larger id) joins the older.
     /// `recall_ids`: each target reported for the first time this frame (`show`) takes the id
     /// of a lost target — one that ended, or is alive but not reported this frame, and was
     /// last reported at most `lost_frames` frames ago — when its box centre lies within
@@ -2106,7 +2104,7 @@ impl WatershedSiftTracker {
                 continue;
             }
             if let Some((last, centre, velocity)) = last_motion(&tg.reported)
-                && t - last <= window
+                && t.saturating_sub(last) <= window
             {
                 let e = Ended {
                     id: tg.report_id,
@@ -2164,6 +2162,8 @@ impl WatershedSiftTracker {
         }
     }
 
+    /// Fuses visible targets whose boxes overlapped (IoU >= `fuse_iou`) for `fuse_frames`
+    /// consecutive frames: the younger (larger id) joins the older.
     fn fuse(&mut self) {
         let n = self.targets.len();
         let visible = |t: &Target| !t.occluded && !t.regions.is_empty();
