@@ -209,6 +209,12 @@ pub fn region_constraint_scan(
     Ok(out)
 }
 
+/// The override's tolerance τ_g(d) = max(3σ_d(d), 0.03 m) (spec 003 §2.2): a reading within it
+/// of `b_n` agrees with the long-term background.
+fn tau_g(d: f64) -> f64 {
+    (3.0 * sigma_d(d)).max(0.03)
+}
+
 /// How σ is chosen per beam.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SigmaMode {
@@ -606,8 +612,7 @@ impl ChiSquareBackground {
                     && !is_static[n]
                     && !self.no_return[n]
                     && self.farthest[n] != 0
-                    && (r - f64::from(self.farthest[n]) * 1e-3).abs()
-                        <= (3.0 * sigma_d(r)).max(0.03)
+                    && (r - f64::from(self.farthest[n]) * 1e-3).abs() <= tau_g(r)
                 {
                     is_static[n] = true;
                     overridden += 1;
@@ -618,7 +623,7 @@ impl ChiSquareBackground {
             for n in 0..n_beams {
                 if let (Some(b), Some(r)) = (self.background[n], scan.range_m(n))
                     && !is_static[n]
-                    && (r - b).abs() <= (3.0 * sigma_d(r)).max(0.03)
+                    && (r - b).abs() <= tau_g(r)
                 {
                     is_static[n] = true;
                     overridden += 1;
@@ -715,7 +720,7 @@ impl ChiSquareBackground {
             // static by the override only: b_n is confirmed, not contradicted
             let away = window_static[n]
                 && match (self.background[n], mean) {
-                    (Some(b), Some(mean)) => (mean - b).abs() > (3.0 * sigma_d(mean)).max(0.03),
+                    (Some(b), Some(mean)) => (mean - b).abs() > tau_g(mean),
                     (None, Some(_)) => true,
                     _ => false,
                 };
@@ -730,7 +735,7 @@ impl ChiSquareBackground {
                 self.background[n] = Some(mean);
                 self.static_run[n] = 0;
             } else if let Some(b) = self.background[n]
-                && (!lt.gated_update || (d - b).abs() <= (3.0 * sigma_d(d)).max(0.03))
+                && (!lt.gated_update || (d - b).abs() <= tau_g(d))
             {
                 self.background[n] = Some((1.0 - lt.alpha) * b + lt.alpha * d);
             }
@@ -747,28 +752,28 @@ impl ChiSquareBackground {
                 .filter(|&x| x != 0)
                 .collect();
             v.sort_unstable();
-            if !v.is_empty() && v.len() as f64 >= lt.min_valid_fraction * w as f64 {
-                let med = if v.len() % 2 == 1 {
+            let median_m = (!v.is_empty()).then(|| {
+                let mm = if v.len() % 2 == 1 {
                     f64::from(v[v.len() / 2])
                 } else {
                     0.5 * (f64::from(v[v.len() / 2 - 1]) + f64::from(v[v.len() / 2]))
                 };
-                self.background[n] = Some(med * 1e-3);
-            } else if lt.sparse_beams && v.len() >= 2 {
-                // a beam that returns now and then at one range: that range, if it is the
-                // range of at least half its returns (and of two or more)
-                let med = if v.len() % 2 == 1 {
-                    f64::from(v[v.len() / 2])
-                } else {
-                    0.5 * (f64::from(v[v.len() / 2 - 1]) + f64::from(v[v.len() / 2]))
-                } * 1e-3;
-                let tol = (3.0 * sigma_d(med)).max(0.03);
-                let near = v
-                    .iter()
-                    .filter(|&&x| (f64::from(x) * 1e-3 - med).abs() <= tol)
-                    .count();
-                if near >= 2 && 2 * near >= v.len() {
+                mm * 1e-3
+            });
+            if let Some(med) = median_m {
+                if v.len() as f64 >= lt.min_valid_fraction * w as f64 {
                     self.background[n] = Some(med);
+                } else if lt.sparse_beams {
+                    // a beam that returns now and then at one range: that range, if it is the
+                    // range of at least half its returns (and of two or more)
+                    let tol = tau_g(med);
+                    let near = v
+                        .iter()
+                        .filter(|&&x| (f64::from(x) * 1e-3 - med).abs() <= tol)
+                        .count();
+                    if near >= 2 && 2 * near >= v.len() {
+                        self.background[n] = Some(med);
+                    }
                 }
             }
             if let SigmaMode::Learned { floor } = self.cfg.sigma {

@@ -360,6 +360,19 @@ fn pair_coverage(
     })
 }
 
+/// Each walker of a [`pair_coverage`] boxed in at least `min` frames under one id, and the
+/// two ids different.
+fn assert_each_walker_boxed_under_its_own_id(
+    coverage: &[(usize, std::collections::BTreeSet<quarry_core::TrackId>); 2],
+    min: usize,
+) {
+    assert!(
+        coverage.iter().all(|(n, ids)| *n >= min && ids.len() == 1),
+        "{coverage:?}"
+    );
+    assert_ne!(coverage[0].1, coverage[1].1, "one identity per walker");
+}
+
 /// `robust` (`fg_pairs`): two walkers side by side, 4 px apart, with a blur wide enough that
 /// they share one minimum and one basin (σ = 10 against silhouettes 14 px wide; on PETS09 a
 /// pair at σ = 8.5 does the same). Without `fg_pairs` one target covers the pair and one walker
@@ -409,11 +422,7 @@ fn robust_slim_pair_gets_two_boxes() {
     let out = run(cfg, &frames);
     let coverage = pair_coverage(&out, |i, t| centre(&walkers[i], t).unwrap(), 40..85);
     eprintln!("frames at IoU >= 0.5 of 45, per walker: {coverage:?}");
-    assert!(
-        coverage.iter().all(|(n, ids)| *n >= 40 && ids.len() == 1),
-        "{coverage:?}"
-    );
-    assert_ne!(coverage[0].1, coverage[1].1, "one identity per walker");
+    assert_each_walker_boxed_under_its_own_id(&coverage, 40);
 }
 
 /// `robust` (`fg_pairs`, occlusion groups): two walkers start apart (two targets), converge
@@ -450,11 +459,7 @@ fn robust_occluded_pair_keeps_two_boxes() {
         occluded >= 60,
         "the test needs an occlusion group ({occluded} reports)"
     );
-    assert!(
-        coverage.iter().all(|(n, ids)| *n >= 38 && ids.len() == 1),
-        "{coverage:?}"
-    );
-    assert_ne!(coverage[0].1, coverage[1].1, "one identity per walker");
+    assert_each_walker_boxed_under_its_own_id(&coverage, 38);
 }
 
 /// Seeded random small frame sequences through both profiles (the fuzz target's input space on

@@ -2310,7 +2310,16 @@ mod tests {
         tg
     }
 
-    fn report_ids(tr: &WatershedSiftTracker) -> Vec<(u32, u32)> {
+    /// Runs the recall on `targets` (`show`: reported this frame) at frame `t`; (own id,
+    /// reported id) of the targets left.
+    fn recall_on(
+        tr: &mut WatershedSiftTracker,
+        targets: Vec<Target>,
+        show: &[bool],
+        t: u64,
+    ) -> Vec<(u32, u32)> {
+        tr.targets = targets;
+        tr.recall(show, t);
         tr.targets.iter().map(|t| (t.id.0, t.report_id.0)).collect()
     }
 
@@ -2323,9 +2332,8 @@ mod tests {
         let a = lost_target(&tr, 1, 10, 14, [100.0, 200.0], [4.0, 0.0]);
         let b = newborn(&tr, 2, 17, [131.0, 202.0]);
         let c = newborn(&tr, 3, 17, [300.0, 200.0]);
-        tr.targets = vec![a, b, c];
-        tr.recall(&[false, true, true], 17);
-        assert_eq!(report_ids(&tr), vec![(2, 1), (3, 3)]);
+        let ids = recall_on(&mut tr, vec![a, b, c], &[false, true, true], 17);
+        assert_eq!(ids, vec![(2, 1), (3, 3)]);
     }
 
     /// The gate is one box width around the predicted place (at rest: the last place), the
@@ -2340,9 +2348,7 @@ mod tests {
             let mut tr = tracker();
             let a = lost_target(&tr, 1, 10, 14, [110.0, 200.0], [0.0, 0.0]);
             let b = newborn(&tr, 2, t, [x, 200.0]);
-            tr.targets = vec![a, b];
-            tr.recall(&[false, true], t);
-            let ids = report_ids(&tr);
+            let ids = recall_on(&mut tr, vec![a, b], &[false, true], t);
             if recalled {
                 assert_eq!(ids, vec![(2, 1)], "t {t} x {x}");
             } else {
@@ -2360,9 +2366,8 @@ mod tests {
         let a = lost_target(&tr, 1, 10, 14, [100.0, 200.0], [0.0, 0.0]);
         let far = newborn(&tr, 2, 16, [120.0, 200.0]);
         let near = newborn(&tr, 3, 16, [105.0, 200.0]);
-        tr.targets = vec![a, far, near];
-        tr.recall(&[false, true, true], 16);
-        assert_eq!(report_ids(&tr), vec![(2, 2), (3, 1)]);
+        let ids = recall_on(&mut tr, vec![a, far, near], &[false, true, true], 16);
+        assert_eq!(ids, vec![(2, 2), (3, 1)]);
 
         let mut tr = tracker();
         tr.ended.push(Ended {
@@ -2371,9 +2376,9 @@ mod tests {
             centre: [100.0, 200.0],
             velocity: [2.0, 0.0],
         });
-        tr.targets = vec![newborn(&tr, 8, 16, [104.0, 200.0])];
-        tr.recall(&[true], 16);
-        assert_eq!(report_ids(&tr), vec![(8, 7)]);
+        let b = newborn(&tr, 8, 16, [104.0, 200.0]);
+        let ids = recall_on(&mut tr, vec![b], &[true], 16);
+        assert_eq!(ids, vec![(8, 7)]);
         assert!(tr.ended.is_empty());
 
         let mut tr = tracker();
@@ -2382,8 +2387,7 @@ mod tests {
         companion.host = Some(TrackId(1));
         companion.reported.push_back((14, [140.0, 200.0]));
         let b = newborn(&tr, 3, 16, [101.0, 200.0]);
-        tr.targets = vec![host, companion, b];
-        tr.recall(&[false, true, true], 16);
-        assert_eq!(report_ids(&tr), vec![(1, 1), (2, 2), (3, 3)]);
+        let ids = recall_on(&mut tr, vec![host, companion, b], &[false, true, true], 16);
+        assert_eq!(ids, vec![(1, 1), (2, 2), (3, 3)]);
     }
 }
