@@ -44,6 +44,16 @@ pub trait ScanSource {
     fn live(&self) -> bool {
         false
     }
+    /// How long before now the scan with source time `t_src` (just returned by
+    /// [`next_scan`](Self::next_scan)) was captured, when the source can tell: a sensor topic
+    /// stamped with this machine's wall clock. The node then stamps the scan at its capture
+    /// instead of at the moment it handles it, so a node that falls behind (a busy machine)
+    /// delays its scans instead of shifting them out of the server's ±τ_sync frame windows.
+    /// `None` (the default): stamped when handled.
+    fn capture_age(&self, t_src: TimeUs) -> Option<Duration> {
+        let _ = t_src;
+        None
+    }
 }
 
 /// Scanner `k` of a simulated room: its scans with their simulated capture times (feature
@@ -653,6 +663,7 @@ pub fn run_wall_node(
     let mut first: Option<(TimeUs, Instant)> = None;
     let mut seq = 0u32;
     let mut last_stamp = TimeUs(0);
+    let mut last_capture = TimeUs(i64::MIN);
     while opts.max_scans.is_none_or(|m| sum.scans < m) {
         match watch.poll()? {
             Watch::Fine => {}
@@ -704,16 +715,26 @@ pub fn run_wall_node(
         // the background model runs on the node's own monotonic clock, which never jumps
         // (the synchronised clock can: a new server, a sync step); the message carries the
         // synchronised stamp
-        scan.t = clock.now();
+        // (a source that knows when the scan was captured moves the stamp back to it; capture
+        // times are increasing, the max guards a clock that stepped)
+        let now = clock.now();
+        let capture = match source.capture_age(t_src) {
+            Some(age) => TimeUs(now.0.saturating_sub(age.as_micros() as i64)).max(last_capture),
+            None => now,
+        };
+        last_capture = capture;
+        scan.t = capture;
         scan.seq = seq;
         scan.sensor = id;
         seq = seq.wrapping_add(1);
         let t0 = Instant::now();
-        let (stamp, synced) = syncer.sync.stamp(clock.now());
+        let (stamp, synced) = syncer.sync.stamp(capture);
         let mut msg = client.on_scan(&scan, synced)?;
         msg.t = stamp;
         client_s += t0.elapsed().as_secs_f64();
-        let (t_send, _) = syncer.sync.stamp(clock.now());
+        // the send time on the same synchronised clock, without stamping a later local time
+        // (the synchronised stamps never go backwards, and the next capture may be earlier)
+        let t_send = TimeUs(stamp.0.saturating_add(clock.now().0 - capture.0));
         for d in encode_dynamic(&msg, t_send)? {
             transport.publish(&key, &d)?;
             sum.datagrams += 1;

@@ -351,6 +351,11 @@ impl std::fmt::Debug for Ros2ScanSource {
 /// clock.
 pub const MAX_LAG_S: f64 = 0.25;
 
+/// The largest difference between a LaserScan's stamp and this machine's wall clock at which
+/// the stamp is taken as the scan's capture time on this clock ([`ScanSource::capture_age`]):
+/// one second, four times [`MAX_LAG_S`] (older scans are dropped as stale anyway).
+pub const MAX_CAPTURE_AGE_S: f64 = 1.0;
+
 /// The scan period assumed when a LaserScan's `scan_time` is 0 (many drivers leave it unset).
 pub const DEFAULT_SCAN_PERIOD_S: f64 = 0.025;
 
@@ -514,6 +519,18 @@ impl ScanSource for Ros2ScanSource {
     fn live(&self) -> bool {
         true
     }
+
+    /// The age of a scan whose stamp is this machine's wall clock (a driver on this machine
+    /// or on a synchronised one): now − stamp, at least 0 (a clock a little ahead), when it
+    /// lies within ±[`MAX_CAPTURE_AGE_S`]; otherwise the stamps are on another clock (ROS sim
+    /// time, an unsynchronised machine) and the scan is stamped when the node handles it.
+    fn capture_age(&self, t_src: TimeUs) -> Option<Duration> {
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .ok()?;
+        let age = now.as_secs_f64() - t_src.as_secs_f64();
+        (age.abs() <= MAX_CAPTURE_AGE_S).then(|| Duration::from_secs_f64(age.max(0.0)))
+    }
 }
 
 impl Ros2ScanSource {
@@ -606,6 +623,31 @@ mod tests {
         assert_eq!(st.foreign_hash, 1);
         assert_eq!(st.scans, 2);
         assert_eq!(st.stale, 0);
+    }
+
+    #[test]
+    fn a_wall_clock_stamp_gives_the_capture_age_and_another_clock_none() {
+        let bus = LocalBus::new();
+        let opts = Ros2Options::default();
+        let sub = Ros2ScanSource::subscribe(&bus, &opts, "/scan", SensorId(0)).unwrap();
+        let mut p = Ros2Publisher::<LaserScan>::new(&bus, &opts, "/scan", 1).unwrap();
+        p.publish(&bus, &scan(1.0, 11), 0).unwrap();
+        let src = sub
+            .first_scan(Duration::from_secs(1), Duration::from_millis(50))
+            .unwrap();
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64();
+        // captured 0.3 s ago on this clock: an age of 0.3 s (a little more by now)
+        let age = src.capture_age(TimeUs::from_secs_f64(now - 0.3)).unwrap();
+        assert!(age.as_secs_f64() >= 0.3, "{age:?}");
+        // a clock a little ahead counts as now
+        let ahead = src.capture_age(TimeUs::from_secs_f64(now + 0.5)).unwrap();
+        assert!(ahead.as_secs_f64() < 0.5, "{ahead:?}");
+        // ROS sim time, or a stamp far from this clock: not a capture time here
+        assert_eq!(src.capture_age(TimeUs::from_secs_f64(1.0)), None);
+        assert_eq!(src.capture_age(TimeUs::from_secs_f64(now + 5.0)), None);
     }
 
     #[test]

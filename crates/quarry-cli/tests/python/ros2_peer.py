@@ -171,11 +171,13 @@ def main():
     k = 0
     seq = 0
     while True:
-        due = t0 + k * PERIOD
+        # a scanner's driver stamps each scan with its capture time, which comes at a steady
+        # period; when this process is starved (a busy machine) the scan goes out late, with
+        # the stamp it was captured at, as a real one delivered late would
+        t = t0 + k * PERIOD
         now = time.time()
-        if due > now:
-            time.sleep(due - now)
-        t = time.time()
+        if t > now:
+            time.sleep(t - now)
         if t - t0 > a.seconds:
             break
         p = person_at(t - t0 - a.empty)
