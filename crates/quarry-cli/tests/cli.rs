@@ -752,16 +752,31 @@ fn lidar_sim_stops_cleanly_on_sigint_and_writes_the_frames_done() {
 #[cfg(target_os = "linux")]
 #[test]
 fn slamot_runs_stop_cleanly_on_sigint_and_report_the_runs_done() {
-    let (code, v) = interrupted_run(
-        &["--json", "slamot", "--runs", "100000", "--particles", "5"],
-        std::time::Duration::ZERO,
-    );
-    assert_eq!(code, 130, "{v}");
-    assert_eq!(v["interrupted"], true, "{v}");
-    let n = v["runs"].as_u64().unwrap();
-    assert!((1..100_000).contains(&n), "{n} runs");
-    assert_eq!(v["per_run"].as_array().unwrap().len() as u64, n);
-    assert!(v["robot_err_mean"].as_f64().unwrap().is_finite(), "{v}");
+    // A signal before the first run ends is a valid answer too (no run done, none reported);
+    // on a busy machine that happens, so the signal then waits twice as long, until a run is
+    // done before it and the summary of the runs done can be checked.
+    let mut settle = std::time::Duration::from_millis(250);
+    loop {
+        let (code, v) = interrupted_run(
+            &["--json", "slamot", "--runs", "100000", "--particles", "5"],
+            settle,
+        );
+        assert_eq!(code, 130, "{v}");
+        assert_eq!(v["interrupted"], true, "{v}");
+        let n = v["runs"].as_u64().unwrap();
+        assert!(n < 100_000, "{n} runs");
+        assert_eq!(v["per_run"].as_array().unwrap().len() as u64, n);
+        if n == 0 {
+            settle *= 2;
+            assert!(
+                settle < std::time::Duration::from_mins(1),
+                "no run done in 30 s"
+            );
+            continue;
+        }
+        assert!(v["robot_err_mean"].as_f64().unwrap().is_finite(), "{v}");
+        break;
+    }
 }
 
 #[cfg(target_os = "linux")]
@@ -1136,14 +1151,15 @@ fn video_on_pets_if_present() {
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
     assert_eq!(v["frames"], 200);
     assert_eq!(v["metrics"]["gt"], 1223);
-    // the accuracy on real video (docs/video-tracker.md, stop 34: MOTA 0.504, IDF1 0.470,
-    // HOTA 0.354; the best peer, KNN + ByteTrack: 0.419, 0.447, 0.362), with a margin; IDF1
-    // and HOTA fail without `recall_ids` (0.438, 0.342)
+    // the accuracy on real video (docs/video-tracker.md, stop 35: MOTA 0.520, IDF1 0.482,
+    // HOTA 0.367; the best peer, KNN + ByteTrack: 0.419, 0.447, 0.362), with a margin; each
+    // fails without `fg_pairs_hold` (0.504, 0.470, 0.354), IDF1 and HOTA also without
+    // `recall_ids` (stop 33: 0.438, 0.343)
     let m = &v["metrics"];
     let get = |k: &str| m[k].as_f64().unwrap();
-    assert!(get("mota") >= 0.49, "{m}");
-    assert!(get("idf1") >= 0.46, "{m}");
-    assert!(get("hota") >= 0.348, "{m}");
+    assert!(get("mota") >= 0.512, "{m}");
+    assert!(get("idf1") >= 0.476, "{m}");
+    assert!(get("hota") >= 0.36, "{m}");
 }
 
 #[test]

@@ -462,6 +462,43 @@ fn robust_occluded_pair_keeps_two_boxes() {
     assert_each_walker_boxed_under_its_own_id(&coverage, 38);
 }
 
+/// `robust` (`fg_pairs_hold`): the side-by-side pair closes up for 26 frames — centres 10 px
+/// apart, the 14-px silhouettes overlapping by 4 px, so no column between them is emptier than
+/// half a person — and opens again. Without the hold the companion is hidden from the first
+/// frame without a gap (and ends `lost_frames` later); with it the pair is cut where it was,
+/// and both walkers keep their boxes and identities.
+#[test]
+fn robust_pair_that_touches_keeps_two_boxes() {
+    let [a, b] = side_by_side();
+    // b's offset from a: 18 px, closing to 10 px over frames 40-44, opening over 70-74
+    let offset = |t: u64| {
+        let t = t as f64;
+        18.0 - 2.0 * (t - 40.0).clamp(0.0, 4.0) + 2.0 * (t - 70.0).clamp(0.0, 4.0)
+    };
+    let at = |i: usize, t: u64| {
+        let x = a.start[0] + 2.0 * t as f64;
+        if i == 0 {
+            [x, a.start[1]]
+        } else {
+            [x + offset(t), b.start[1]]
+        }
+    };
+    let frames = video_with(&[a, b], 100, 21, |i, t| Some(at(i, t)));
+    let coverage = |hold: bool| {
+        let mut cfg = config(true);
+        cfg.sigma = 10.0;
+        cfg.fg_pairs_hold = hold;
+        pair_coverage(&run(cfg, &frames), at, 44..70)
+    };
+    let (without, with) = (coverage(false), coverage(true));
+    eprintln!("frames at IoU >= 0.5 of 26, per walker: without {without:?}, with {with:?}");
+    assert!(
+        without[0].0.min(without[1].0) < 13,
+        "without the hold one walker of the touching pair is unboxed: {without:?}"
+    );
+    assert_each_walker_boxed_under_its_own_id(&with, 24);
+}
+
 /// Seeded random small frame sequences through both profiles (the fuzz target's input space on
 /// stable Rust, so the foreground extensions' box and blob arithmetic is exercised at image
 /// borders and on 1-px frames): errors are allowed, panics and non-finite boxes are not.

@@ -305,6 +305,18 @@ pub struct WatershedSiftConfig {
     /// the assignment keeping each nearer its last reported box. Groups of three or more, and
     /// pairs without a gap, keep their last fits as before.
     pub fg_pairs: bool,
+    /// A pair that touches stays a pair \[ext, ours; `robust`: true; needs `fg_pairs`\]: when a
+    /// target whose companion was reported in the previous frame has foreground still two
+    /// people wide with a person-high part on each side, but no gap between them (the two
+    /// walk shoulder to shoulder), the pair is cut where it was cut in the previous frame
+    /// (midway between the two last boxes, moved with the target's centre) instead of being
+    /// given up. Without it the companion is hidden from the first frame the gap closes and
+    /// ends `lost_frames` later (on PETS09-S2L1 the red jacket and the black coat touch in
+    /// frames ≈ 105-110 and 136-178: one of them unboxed, docs/video-tracker.md, diagnosis
+    /// 4). Every other condition of the pair test holds as before (each part at most one
+    /// person wide and with a column holding half the fitted height); no new number, and a
+    /// pair is never *started* without a gap.
+    pub fg_pairs_hold: bool,
     /// Smallest uncovered foreground blob for a birth, as a fraction of w·h [ours, `robust`:
     /// 0.3 — a silhouette fills about 60 % of its box; half of it must be uncovered].
     pub birth_min_frac: f64,
@@ -378,6 +390,7 @@ impl WatershedSiftConfig {
             recall_ids: false,
             fg_skip_background: false,
             fg_pairs: false,
+            fg_pairs_hold: false,
             birth_min_frac: 0.3,
             birth_frames: 3,
         }
@@ -403,6 +416,7 @@ impl WatershedSiftConfig {
             recall_ids: true,
             fg_skip_background: true,
             fg_pairs: true,
+            fg_pairs_hold: true,
             bg_selective: true,
             stuck_needs_no_fg: true,
             ..Self::paper()

@@ -1411,6 +1411,16 @@ impl WatershedSiftTracker {
         let mut fits: Vec<Option<[f64; 4]>> = vec![None; self.targets.len()];
         // [ext] fg_pairs: the other person's box, for targets whose foreground is a pair
         let mut pairs: Vec<Option<[BBox; 2]>> = vec![None; self.targets.len()];
+        // [ext] fg_pairs_hold: the column between a target's and its companion's boxes of the
+        // previous frame, moved with the target's centre since then
+        let held_cut = |tg: &Target| -> Option<f64> {
+            if !cfg.fg_pairs_hold {
+                return None;
+            }
+            let cp = self.targets.iter().find(|o| o.host == Some(tg.id))?;
+            let (hb, cb, prev) = (tg.report?, cp.report?, tg.history.back()?);
+            Some(f64::midpoint(hb.cx, cb.cx) + tg.centre[0] - prev[0])
+        };
         for (k, tg) in self.targets.iter().enumerate() {
             if tg.regions.is_empty() || tg.occluded {
                 continue;
@@ -1507,6 +1517,7 @@ impl WatershedSiftTracker {
                         (o.is_empty() || own).then_some(own)
                     },
                     w,
+                    held_cut(tg),
                 )
             {
                 // a companion stays on the part nearer its last place
@@ -1581,6 +1592,7 @@ impl WatershedSiftTracker {
                         (o.is_empty() || own).then_some(own)
                     },
                     w,
+                    None,
                 );
                 if let Some((p, q)) = split {
                     // each member keeps to the part nearer its last reported box (continuity:
@@ -1650,6 +1662,7 @@ impl WatershedSiftTracker {
         rows: (usize, usize),
         pixel: impl Fn(usize, usize) -> Option<bool>,
         w: usize,
+        hold: Option<f64>,
     ) -> Option<(BBox, BBox)> {
         let s = cfg.fg_max_scale;
         let pw = cfg.box_w / cfg.box_h * fh;
@@ -1705,11 +1718,18 @@ impl WatershedSiftTracker {
                 cut = Some(k);
             }
         }
-        let cut = cut?;
+        let mut cut = cut?;
         let peak = |r: std::ops::Range<usize>| cols[r].iter().copied().max().unwrap_or(0);
-        let low = peak(a..cut).min(peak(cut + 1..b)) as f64;
-        if low < 0.5 * fh || cols[cut] as f64 > 0.5 * low {
-            return None;
+        let low = |cut: usize| peak(a..cut).min(peak(cut + 1..b)) as f64;
+        if low(cut) < 0.5 * fh || cols[cut] as f64 > 0.5 * low(cut) {
+            // no gap: a pair held from the previous frame is cut where it was (`fg_pairs_hold`)
+            let held = hold
+                .map(|x| x.round() - x0 as f64)
+                .filter(|&k| k >= (a + part) as f64 && k < b.saturating_sub(part) as f64)?;
+            cut = held as usize;
+            if low(cut) < 0.5 * fh {
+                return None;
+            }
         }
         // each part at most one person wide (a part wider than that is a person and
         // something else: a third person, or a ghost left in the background)
