@@ -620,7 +620,9 @@ fn server_ended(id: SensorId, scans: u64) -> NetError {
 }
 
 /// Wall-clock node over any [`ScanSource`]: Hello, clock sync warm-up, then every scan paced
-/// by its source time, stamped with the synchronised clock and published as §7.1 datagrams.
+/// by its source time, stamped with the synchronised clock (at its capture when the source
+/// knows it, [`ScanSource::capture_age`]; else when the node handles it) and published as §7.1
+/// datagrams.
 pub fn run_wall_node(
     transport: &dyn Transport,
     source: &mut dyn ScanSource,
