@@ -289,7 +289,10 @@ fn a_node_that_dies_is_named_silent_in_the_report() {
     let dead = run.sensors[0];
     assert_eq!(dead.state(), "silent", "{dead:?}");
     assert!(dead.joined && !dead.ended, "{dead:?}");
-    assert!(dead.accepted > 0 && dead.accepted <= 5, "{dead:?}");
+    // it was heard, and at most its five scans were fused (on a busy machine some may count
+    // as late instead of accepted: the other tests of this file assert only the accounting)
+    assert!(dead.last_heard_s.is_some(), "{dead:?}");
+    assert!(dead.accepted <= 5, "{dead:?}");
     assert_eq!(run.sensors[1].state(), "ended", "{:?}", run.sensors[1]);
     assert_eq!(
         run.sensors[2].state(),
