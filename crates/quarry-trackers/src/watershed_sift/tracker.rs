@@ -1413,12 +1413,11 @@ impl WatershedSiftTracker {
         let mut pairs: Vec<Option<[BBox; 2]>> = vec![None; self.targets.len()];
         // [ext] fg_pairs_hold: the column between a target's and its companion's boxes of the
         // previous frame, moved with the target's centre since then
-        let held_cut = |tg: &Target| -> Option<f64> {
+        let held_cut = |tg: &Target, cp: Option<&Target>| -> Option<f64> {
             if !cfg.fg_pairs_hold {
                 return None;
             }
-            let cp = self.targets.iter().find(|o| o.host == Some(tg.id))?;
-            let (hb, cb, prev) = (tg.report?, cp.report?, tg.history.back()?);
+            let (hb, cb, prev) = (tg.report?, cp?.report?, tg.history.back()?);
             Some(f64::midpoint(hb.cx, cb.cx) + tg.centre[0] - prev[0])
         };
         for (k, tg) in self.targets.iter().enumerate() {
@@ -1494,6 +1493,10 @@ impl WatershedSiftTracker {
             let wcap = cfg.fg_max_aspect * cfg.box_w / cfg.box_h * fh;
             let (cx, fw) = fit_axis(span(&cols, x0), cfg.box_w, tg.centre[0], wcap);
             fits[k] = Some([cx - tg.centre[0], cy - tg.centre[1], fw, fh]);
+            let companion = cfg
+                .fg_pairs
+                .then(|| self.targets.iter().find(|o| o.host == Some(tg.id)))
+                .flatten();
             if cfg.fg_pairs
                 && let Some((host, other)) = Self::pair_split(
                     cfg,
@@ -1517,11 +1520,11 @@ impl WatershedSiftTracker {
                         (o.is_empty() || own).then_some(own)
                     },
                     w,
-                    held_cut(tg),
+                    held_cut(tg, companion),
                 )
             {
                 // a companion stays on the part nearer its last place
-                let (host, other) = match self.targets.iter().find(|o| o.host == Some(tg.id)) {
+                let (host, other) = match companion {
                     Some(cp)
                         if (host.cx - cp.centre[0]).hypot(host.cy - cp.centre[1])
                             < (other.cx - cp.centre[0]).hypot(other.cy - cp.centre[1]) =>
@@ -1721,7 +1724,8 @@ impl WatershedSiftTracker {
         let mut cut = cut?;
         let peak = |r: std::ops::Range<usize>| cols[r].iter().copied().max().unwrap_or(0);
         let low = |cut: usize| peak(a..cut).min(peak(cut + 1..b)) as f64;
-        if low(cut) < 0.5 * fh || cols[cut] as f64 > 0.5 * low(cut) {
+        let low_at_gap = low(cut);
+        if low_at_gap < 0.5 * fh || cols[cut] as f64 > 0.5 * low_at_gap {
             // no gap: a pair held from the previous frame is cut where it was (`fg_pairs_hold`)
             let held = hold
                 .map(|x| x.round() - x0 as f64)
