@@ -265,3 +265,43 @@ fn compute_matches_detect_and_compute() {
     r.sort_by(|a, b| b.total_cmp(a));
     assert!(kb.iter().all(|x| x.response >= r[9]));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(12))]
+
+    /// `detect_in_where` is `detect_in` filtered by the predicate, in the same order, for a
+    /// random box (a padded crop's area), with and without up-sampling, and with a feature cap.
+    #[test]
+    fn detect_in_where_is_detect_in_filtered(
+        seed in 0u64..1000,
+        n in 20usize..150,
+        bx in 0.0f32..60.0,
+        by in 0.0f32..60.0,
+        bw in 0.0f32..70.0,
+        bh in 0.0f32..70.0,
+        upsample in proptest::bool::ANY,
+        cap in 0usize..3,
+    ) {
+        let img = dead_leaves(80, 72, n, 12, seed);
+        let sift = Sift::new(SiftParams {
+            upsample,
+            max_features: [0, 5, 40][cap],
+            ..SiftParams::default()
+        })
+        .unwrap();
+        let f = Plane::from_fn(80, 72, |x, y| f32::from(*img.get(x, y).unwrap()));
+        let ss = sift.scale_space(&f).unwrap();
+        let keep = |x: f32, y: f32| x >= bx && x < bx + bw && y >= by && y < by + bh;
+        let mut want = sift.detect_in(&ss);
+        want.retain(|k| keep(k.x, k.y));
+        let got = sift.detect_in_where(&ss, keep);
+        let bits = |k: &Keypoint| {
+            (k.x.to_bits(), k.y.to_bits(), k.sigma.to_bits(), k.angle_deg.to_bits(),
+             k.response.to_bits(), k.octave, k.layer, k.layer_offset.to_bits())
+        };
+        prop_assert_eq!(
+            got.iter().map(bits).collect::<Vec<_>>(),
+            want.iter().map(bits).collect::<Vec<_>>()
+        );
+    }
+}

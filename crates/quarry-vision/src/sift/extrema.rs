@@ -297,6 +297,18 @@ fn refine(
 }
 
 pub(super) fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
+    find_keypoints_where(ss, p, &|_, _| true)
+}
+
+/// [`find_keypoints`] restricted to the refined extrema whose position (input-image pixels)
+/// passes `keep`: only those are given orientations (the orientation histogram is most of the
+/// cost of a keypoint), and the result is [`find_keypoints`]' output filtered by `keep`, in the
+/// same order (a keypoint's position is its extremum's).
+pub(super) fn find_keypoints_where(
+    ss: &ScaleSpace,
+    p: &SiftParams,
+    keep: &(dyn Fn(f32, f32) -> bool + Sync),
+) -> Vec<Keypoint> {
     let s = ss.layers;
     // OpenCV's pre-threshold in 0..255 units, floored to an integer (spec 004 §4.3).
     let thr = (0.5 * p.contrast_threshold / s as f64 * 255.0).floor() as f32;
@@ -342,7 +354,9 @@ pub(super) fn find_keypoints(ss: &ScaleSpace, p: &SiftParams) -> Vec<Keypoint> {
     }
     let run = |&(o, layer, r, c): &(usize, usize, usize, usize)| -> Vec<Keypoint> {
         let mut out = Vec::new();
-        if let Some(rf) = refine(ss, p, o, layer, r, c) {
+        if let Some(rf) = refine(ss, p, o, layer, r, c)
+            && keep(rf.kp.x, rf.kp.y)
+        {
             orient(ss, &rf, &mut out);
         }
         out

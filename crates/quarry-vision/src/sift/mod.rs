@@ -248,6 +248,26 @@ impl Sift {
         kps
     }
 
+    /// The keypoints of [`detect_in`](Self::detect_in) whose position `(x, y)` (input-image
+    /// pixels) passes `keep`, in the same order: exactly `detect_in(ss)` filtered by `keep`,
+    /// but only the extrema that pass are given orientations, which saves most of the work
+    /// when few are wanted (the padding of a crop, say). With `max_features > 0` every keypoint
+    /// is detected first, since the cut to the strongest needs all of them.
+    pub fn detect_in_where(
+        &self,
+        ss: &ScaleSpace,
+        keep: impl Fn(f32, f32) -> bool + Sync,
+    ) -> Vec<Keypoint> {
+        if self.params.max_features > 0 {
+            let mut kps = self.detect_in(ss);
+            kps.retain(|k| keep(k.x, k.y));
+            return kps;
+        }
+        let mut kps = extrema::find_keypoints_where(ss, &self.params, &keep);
+        extrema::sort_dedup(&mut kps);
+        kps
+    }
+
     /// Unit-norm float descriptors (after the 0.2 clamp and renormalisation, before
     /// quantisation) of the keypoints `kps` in scale space `ss`.
     pub fn describe_in(
