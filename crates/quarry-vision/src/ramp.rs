@@ -10,9 +10,16 @@ use crate::VisionError;
 use quarry_core::{CoreError, Plane};
 
 /// Grey images the ramp accepts (8- and 16-bit).
-pub trait GreyLevel: Copy + Into<f64> + Into<u32> {}
-impl GreyLevel for u8 {}
-impl GreyLevel for u16 {}
+pub trait GreyLevel: Copy + Into<f64> + Into<u32> {
+    /// The largest value of the type: with `levels` above it no pixel needs checking.
+    const MAX_LEVEL: u32 = u32::MAX;
+}
+impl GreyLevel for u8 {
+    const MAX_LEVEL: u32 = u8::MAX as u32;
+}
+impl GreyLevel for u16 {
+    const MAX_LEVEL: u32 = u16::MAX as u32;
+}
 
 /// The blend coefficients `(α, β) = ((L − 3)/(L − 1), 2/(L − 1))` of eq. (2).
 pub fn ramp_coefficients(levels: u32) -> Result<(f64, f64), VisionError> {
@@ -65,6 +72,10 @@ pub(crate) fn checked_coefficients<T: GreyLevel>(
 ) -> Result<(f64, f64), VisionError> {
     let coefficients = ramp_coefficients(levels)?;
     check_grey(img, what)?;
+    // an 8-bit frame with L = 256 cannot hold a pixel >= L: no pass over the pixels
+    if levels > T::MAX_LEVEL {
+        return Ok(coefficients);
+    }
     if let Some(&v) = img.data.iter().find(|&&v| Into::<u32>::into(v) >= levels) {
         return Err(CoreError::invalid(
             "levels",
