@@ -328,8 +328,13 @@ multiversion!(avx512, avx2:
     )
 );
 
-/// Rows of the vertical pass from a ring: `starts[i]` is where source row `y0 − r + i` starts
-/// in `src`; otherwise [`vertical_band_body`].
+/// A band of rows of the vertical pass, `out` holding whole rows: `starts[i]` is where the
+/// source row `y0 − r + i` starts in `src` (a ring's slot, or the reflected row of a whole
+/// image), and `out[x] = k0 src[c][x] + Σ_j k_j (src[u_j][x] + src[d_j][x])` in that order (as
+/// [`blur_row_body`]). The band is walked in strips of [`BLOCK`] columns, each strip from the
+/// band's first row to its last, so that the `2r + rows` source rows of a strip stay in the L1
+/// cache while they are reused; the accumulators of one output block stay in registers. The
+/// per-pixel operation sequence does not depend on the walk, so neither does the result.
 // Inlined into the builds of `multiversion!` so that the loop is compiled for each ISA there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
@@ -540,14 +545,10 @@ multiversion!(avx512, avx2:
 
 /// Rows `y0..` of the vertical pass, `out` holding whole rows:
 /// `out[x] = k0 src[y][x] + Σ_j k_j (src[y − j][x] + src[y + j][x])` (same order of operations
-/// as [`blur_row_body`]). The band is walked in strips of [`BLOCK`] columns, each strip from
-/// the band's first row to its last, so that the `2r + rows` source rows of a strip stay in the
-/// L1 cache while they are reused; the accumulators of one output block stay in registers. The
-/// per-pixel operation sequence does not depend on the walk, so neither does the result.
+/// as [`blur_row_body`]), summed by [`ring_band_body`] over the band's reflected row starts.
 // Inlined into the builds of `multiversion!` so that the loop is compiled for each ISA there.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn vertical_band_body<T: BlurSample>(
     src: &[T],
     out: &mut [T],
@@ -563,44 +564,7 @@ fn vertical_band_body<T: BlurSample>(
     let starts: Vec<usize> = (0..rows + 2 * r)
         .map(|i| border.interpolate((y0 + i) as isize - r as isize, h) * w)
         .collect();
-    let k0 = k[0];
-    let full = w - w % BLOCK;
-    for x0 in (0..full).step_by(BLOCK) {
-        for (i, out_row) in out.chunks_exact_mut(w).enumerate() {
-            let c0 = starts[i + r];
-            let mut acc = [T::default(); BLOCK];
-            for (a, &v) in acc.iter_mut().zip(&src[c0 + x0..c0 + x0 + BLOCK]) {
-                *a = k0 * v;
-            }
-            for (j, &kj) in k.iter().enumerate().skip(1) {
-                let (u0, d0) = (starts[i + r - j], starts[i + r + j]);
-                let up = &src[u0 + x0..u0 + x0 + BLOCK];
-                let down = &src[d0 + x0..d0 + x0 + BLOCK];
-                for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
-                    *a += kj * (u + v);
-                }
-            }
-            out_row[x0..x0 + BLOCK].copy_from_slice(&acc);
-        }
-    }
-    if full == w {
-        return;
-    }
-    for (i, out_row) in out.chunks_exact_mut(w).enumerate() {
-        let c0 = starts[i + r];
-        let tail = &mut out_row[full..];
-        for (o, &c) in tail.iter_mut().zip(&src[c0 + full..c0 + w]) {
-            *o = k0 * c;
-        }
-        for (j, &kj) in k.iter().enumerate().skip(1) {
-            let (u0, d0) = (starts[i + r - j], starts[i + r + j]);
-            let up = &src[u0 + full..u0 + w];
-            let down = &src[d0 + full..d0 + w];
-            for ((o, &a), &b) in tail.iter_mut().zip(up).zip(down) {
-                *o += kj * (a + b);
-            }
-        }
-    }
+    ring_band_body(src, out, w, &starts, k);
 }
 
 /// Blurs a 1-D signal with `kernel` (used for the exact blur of the separable ramp).
