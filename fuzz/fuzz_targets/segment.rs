@@ -1,7 +1,7 @@
 //! Segmentation on random small images and sigmas: valid input (≥ 2×2, σ > 0) always succeeds,
 //! invalid input is an error (never a panic); every pixel is labelled, each minimum's
 //! representative carries its own label, and mapping a segmentation onto itself is all
-//! bidirectional.
+//! bidirectional; the single-threaded blur gives the multi-threaded one's bits.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -10,6 +10,17 @@ use quarry_vision::{
     Connectivity, RampBlurWatershed, RegionAdjacency, RegionMapping, WatershedOptions, flood,
     regional_minima,
 };
+
+/// A pool of one thread, where the blur takes its streaming path.
+fn one_thread() -> &'static rayon::ThreadPool {
+    static POOL: std::sync::OnceLock<rayon::ThreadPool> = std::sync::OnceLock::new();
+    POOL.get_or_init(|| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("a one-thread pool")
+    })
+}
 
 fuzz_target!(|data: &[u8]| {
     if data.len() < 4 {
@@ -38,7 +49,18 @@ fuzz_target!(|data: &[u8]| {
         },
     };
     let valid = w >= 2 && h >= 2 && sigma.is_finite() && sigma > 0.0 && sigma < 4000.0;
-    match seg.run(&img) {
+    let result = seg.run(&img);
+    // the single-threaded blur (a ring of rows) must give the multi-threaded one's bits
+    let single = one_thread().install(|| seg.run(&img));
+    match (&result, &single) {
+        (Ok(a), Ok(b)) => {
+            assert!(a.relief.data.iter().zip(&b.relief.data).all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert_eq!(a.segmentation.labels, b.segmentation.labels);
+        }
+        (Err(_), Err(_)) => {}
+        _ => panic!("one thread and several disagree on whether the input is valid"),
+    }
+    match result {
         Ok(out) => {
             assert!(valid);
             let s = &out.segmentation;
