@@ -630,7 +630,23 @@ fn resolve<T: Relief>(
             i = j;
         }
     }
-    // every non-seed pixel now names its labeller (of lower rank, so the chains end at seeds)
+    // every non-seed pixel now names its labeller (of lower rank, so the chains end at seeds);
+    // a pixel's label is its chain's seed whatever the order in which labels are copied. A
+    // backward pass first labels the pixels whose labeller comes later in raster order and is
+    // labelled by then (whole chains of such steps, e.g. slopes falling down the image), so that
+    // the forward pass below finds most labellers labelled and rarely chases a chain far ahead
+    // in the image (a cache miss per step)
+    for p in (0..n).rev() {
+        if labels[p] != 0 {
+            continue;
+        }
+        if let Some(&o) = lin.get(usize::from(codes[p]))
+            && o > 0
+            && let Some(&l) = labels.get(p.wrapping_add_signed(o))
+        {
+            labels[p] = l;
+        }
+    }
     let mut stack: Vec<usize> = Vec::new();
     for p in 0..n {
         if labels[p] != 0 {
