@@ -288,7 +288,13 @@ fn blur_rows_streaming<T: BlurSample>(
     // every source row of output row y (reflected or not) lies in [y − r, y + r] ∩ [0, h − 1],
     // so a ring of 2r + ROWS_PER_TASK rows indexed by row % len keeps every row a band needs
     let len = h.min(2 * r + ROWS_PER_TASK);
-    let mut ring = vec![T::default(); len * w];
+    // ring rows `ws` apart with an odd number of 64-byte lines between row starts: with a
+    // power-of-two-heavy stride (768 f64 = 96 lines) the rows of a strip fall into a few L1
+    // sets and evict each other
+    let per_line = (64 / std::mem::size_of::<T>()).max(1);
+    let lines = w.div_ceil(per_line);
+    let ws = (lines | 1) * per_line;
+    let mut ring = vec![T::default(); len * ws];
     let mut pad = vec![T::default(); w + 2 * r];
     let mut out = vec![T::default(); w * h];
     let mut filled = 0;
@@ -302,14 +308,14 @@ fn blur_rows_streaming<T: BlurSample>(
             for i in (0..r).chain(r + w..w + 2 * r) {
                 pad[i] = pad[r + border.interpolate(i as isize - r as isize, w)];
             }
-            let slot = (filled % len) * w;
+            let slot = (filled % len) * ws;
             blur_row(level, &pad, &mut ring[slot..slot + w], k);
             filled += 1;
         }
         starts.clear();
         starts.extend(
             (0..rows + 2 * r)
-                .map(|i| (border.interpolate((y0 + i) as isize - r as isize, h) % len) * w),
+                .map(|i| (border.interpolate((y0 + i) as isize - r as isize, h) % len) * ws),
         );
         ring_band(level, &ring, out_band, w, &starts, k);
     }
