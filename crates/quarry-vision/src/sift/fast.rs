@@ -157,35 +157,31 @@ fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]
         &src[yy * w..(yy + 1) * w]
     };
     let n_rows = dst.len() / w;
-    // Row pairs (up, down) of every tap j = 1..=r, for every output row of the band.
+    // The (reflected) source rows y0 − r ..= y0 + n_rows − 1 + r, once each: output row i reads
+    // the window rows[i ..= i + 2r], its centre at i + r and tap j's pair at i + r ∓ j.
     let r = k.len() - 1;
-    let mut pairs: Vec<(&[f32], &[f32])> = Vec::with_capacity(n_rows * r);
-    let mut centres: Vec<&[f32]> = Vec::with_capacity(n_rows);
-    for i in 0..n_rows {
-        let y = (y0 + i) as isize;
-        centres.push(row(y));
-        pairs.extend((1..=r).map(|j| (row(y - j as isize), row(y + j as isize))));
-    }
+    let rows: Vec<&[f32]> = (0..n_rows + 2 * r)
+        .map(|i| row((y0 + i) as isize - r as isize))
+        .collect();
     let mut x0 = 0;
     while x0 < w {
         let x1 = (x0 + STRIP).min(w);
         for (i, d) in dst.chunks_exact_mut(w).enumerate() {
-            let centre = centres[i];
-            let pairs = &pairs[i * r..(i + 1) * r];
+            let win = &rows[i..=i + 2 * r];
             let mut x = x0;
             while x + LANES <= x1 {
-                v_block::<LANES>(&mut d[x..x + LANES], x, k0, centre, &k[1..], pairs);
+                v_block::<LANES>(&mut d[x..x + LANES], x, k0, &k[1..], win);
                 x += LANES;
             }
             // The strip's last columns: blocks of 8, then single columns.
             while x + 8 <= x1 {
-                v_block::<8>(&mut d[x..x + 8], x, k0, centre, &k[1..], pairs);
+                v_block::<8>(&mut d[x..x + 8], x, k0, &k[1..], win);
                 x += 8;
             }
             for xx in x..x1 {
-                let mut a = k0 * centre[xx];
-                for (&kj, &(up, down)) in k[1..].iter().zip(pairs) {
-                    a += kj * (up[xx] + down[xx]);
+                let mut a = k0 * win[r][xx];
+                for (j, &kj) in k[1..].iter().enumerate() {
+                    a += kj * (win[r - 1 - j][xx] + win[r + 1 + j][xx]);
                 }
                 d[xx] = a;
             }
@@ -195,24 +191,18 @@ fn v_body(src: &[f32], dst: &mut [f32], w: usize, h: usize, y0: usize, k: &[f32]
 }
 
 /// `N` outputs of the vertical pass from column `x`: `k0·centre + Σ_j k_j·(up_j + down_j)`, in
-/// the reference's order.
+/// the reference's order; `win` holds the `2r + 1` source rows, the centre in the middle.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn v_block<const N: usize>(
-    d: &mut [f32],
-    x: usize,
-    k0: f32,
-    centre: &[f32],
-    k: &[f32],
-    pairs: &[(&[f32], &[f32])],
-) {
+fn v_block<const N: usize>(d: &mut [f32], x: usize, k0: f32, k: &[f32], win: &[&[f32]]) {
+    let r = k.len();
     let mut acc = [0f32; N];
-    for (a, &v) in acc.iter_mut().zip(&centre[x..x + N]) {
+    for (a, &v) in acc.iter_mut().zip(&win[r][x..x + N]) {
         *a = k0 * v;
     }
-    for (&kj, &(up, down)) in k.iter().zip(pairs) {
-        let up = &up[x..x + N];
-        let down = &down[x..x + N];
+    for (j, &kj) in k.iter().enumerate() {
+        let up = &win[r - 1 - j][x..x + N];
+        let down = &win[r + 1 + j][x..x + N];
         for ((a, &u), &v) in acc.iter_mut().zip(up).zip(down) {
             *a += kj * (u + v);
         }
