@@ -18,7 +18,7 @@
 //! whatever the thread count, so the result is bit-identical to the single-threaded one.
 
 use crate::VisionError;
-use crate::simd::{isa, multiversion};
+use crate::simd::{Isa, isa, multiversion};
 use quarry_core::Plane;
 
 /// Border extrapolation (OpenCV's names).
@@ -272,7 +272,7 @@ pub(crate) fn blur_rows<T: BlurSample>(
 /// The single-threaded [`blur_rows`]: the horizontal pass fills a ring of the last
 /// `2r + ROWS_PER_TASK` rows, and each band of [`ROWS_PER_TASK`] output rows is summed as soon
 /// as its rows are in the ring, walked in strips of [`BLOCK`] columns like
-/// [`vertical_band_body`]. The intermediate image is never allocated and the rows being summed
+/// [`vertical_band`]. The intermediate image is never allocated and the rows being summed
 /// stay in the L2 cache (768 f64 pixels with r = 34: 520 KB, where the intermediate image of
 /// 3.5 MB does not fit). Each pixel sees the same operations in the same order as in the
 /// two-pass version, so the output is bit-identical (tested).
@@ -304,10 +304,7 @@ fn blur_rows_streaming<T: BlurSample>(
         let rows = out_band.len() / w;
         let last = (y0 + rows - 1 + r).min(h - 1);
         while filled <= last {
-            fill(filled, &mut pad[r..r + w]);
-            for i in (0..r).chain(r + w..w + 2 * r) {
-                pad[i] = pad[r + border.interpolate(i as isize - r as isize, w)];
-            }
+            padded_row(fill, filled, &mut pad, r, border);
             let slot = (filled % len) * ws;
             blur_row(level, &pad, &mut ring[slot..slot + w], k);
             filled += 1;
@@ -416,6 +413,22 @@ pub(crate) fn check_plane<T: BlurSample>(
 /// the band of the vertical pass (whose strips of `2r + 16` source rows stay in L1).
 const ROWS_PER_TASK: usize = 16;
 
+/// Source row `y` (from `fill`) in the middle of `pad` (length `w + 2r`) with its `r` reflected
+/// values at each end: the input of [`blur_row`].
+fn padded_row<T: BlurSample>(
+    fill: &impl Fn(usize, &mut [T]),
+    y: usize,
+    pad: &mut [T],
+    r: usize,
+    border: Border,
+) {
+    let w = pad.len() - 2 * r;
+    fill(y, &mut pad[r..r + w]);
+    for i in (0..r).chain(r + w..w + 2 * r) {
+        pad[i] = pad[r + border.interpolate(i as isize - r as isize, w)];
+    }
+}
+
 fn horizontal_pass<T: BlurSample>(
     fill: &(impl Fn(usize, &mut [T]) + Sync),
     dst: &mut [T],
@@ -428,10 +441,7 @@ fn horizontal_pass<T: BlurSample>(
     // the source row goes into the middle of `pad`, the reflected borders around it
     let row_fn = |y: usize, dst_row: &mut [T], pad: &mut Vec<T>| {
         pad.resize(w + 2 * r, T::default());
-        fill(y, &mut pad[r..r + w]);
-        for i in (0..r).chain(r + w..w + 2 * r) {
-            pad[i] = pad[r + border.interpolate(i as isize - r as isize, w)];
-        }
+        padded_row(fill, y, pad, r, border);
         blur_row(level, pad, dst_row, k);
     };
     #[cfg(feature = "parallel")]
@@ -535,27 +545,12 @@ fn vertical_pass<T: BlurSample>(
     }
 }
 
-multiversion!(avx512, avx2:
-    /// A band of vertical output rows (dispatching like [`blur_row`]).
-    #[inline]
-    fn vertical_band<[T: BlurSample]> => vertical_band_body(
-        src: &[T],
-        out: &mut [T],
-        w: usize,
-        h: usize,
-        y0: usize,
-        k: &[T],
-        border: Border,
-    )
-);
-
 /// Rows `y0..` of the vertical pass, `out` holding whole rows:
 /// `out[x] = k0 src[y][x] + Σ_j k_j (src[y − j][x] + src[y + j][x])` (same order of operations
-/// as [`blur_row_body`]), summed by [`ring_band_body`] over the band's reflected row starts.
-// Inlined into the builds of `multiversion!` so that the loop is compiled for each ISA there.
-#[allow(clippy::inline_always)]
-#[inline(always)]
-fn vertical_band_body<T: BlurSample>(
+/// as [`blur_row_body`]), summed by [`ring_band`] over the band's reflected row starts.
+#[allow(clippy::too_many_arguments)]
+fn vertical_band<T: BlurSample>(
+    level: Isa,
     src: &[T],
     out: &mut [T],
     w: usize,
@@ -570,7 +565,7 @@ fn vertical_band_body<T: BlurSample>(
     let starts: Vec<usize> = (0..rows + 2 * r)
         .map(|i| border.interpolate((y0 + i) as isize - r as isize, h) * w)
         .collect();
-    ring_band_body(src, out, w, &starts, k);
+    ring_band(level, src, out, w, &starts, k);
 }
 
 /// Blurs a 1-D signal with `kernel` (used for the exact blur of the separable ramp).

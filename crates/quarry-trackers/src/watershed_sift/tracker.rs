@@ -326,8 +326,23 @@ impl<'a> FeatureCache<'a> {
                 .ok_or_else(|| TrackerError::State("internal: crop cache entry".into()))?;
             let ss = &entry.ss;
             let kps = self.sift.detect_in_where(ss, |x, y| keep(x + ox, y + oy));
-            let known = |k: &Keypoint| entry.described.iter().find(|(d, _)| same_keypoint(d, k));
-            let fresh: Vec<Keypoint> = kps.iter().filter(|k| known(k).is_none()).copied().collect();
+            // each keypoint's descriptor: one already described, or the next fresh one
+            let known: Vec<Option<usize>> = kps
+                .iter()
+                .map(|k| {
+                    entry
+                        .described
+                        .iter()
+                        .position(|(d, _)| same_keypoint(d, k))
+                })
+                .collect();
+            let fresh: Vec<Keypoint> = kps
+                .iter()
+                .zip(&known)
+                .filter(|(_, i)| i.is_none())
+                .map(|(k, _)| *k)
+                .collect();
+            let mut next = entry.described.len();
             if !fresh.is_empty() {
                 let d = self.sift.describe_in(ss, &fresh)?;
                 entry.described.extend(
@@ -336,15 +351,14 @@ impl<'a> FeatureCache<'a> {
                         .zip(d.iter().map(quarry_vision::sift::quantize)),
                 );
             }
-            for k in &kps {
-                let (_, d) = entry
-                    .described
-                    .iter()
-                    .find(|(d, _)| same_keypoint(d, k))
-                    .ok_or_else(|| TrackerError::State("internal: crop cache entry".into()))?;
+            for (k, i) in kps.iter().zip(known) {
+                let i = i.unwrap_or_else(|| {
+                    next += 1;
+                    next - 1
+                });
                 let (x, y) = (k.x + entry.origin.0 as f32, k.y + entry.origin.1 as f32);
                 pos.push([f64::from(x), f64::from(y)]);
-                out.push(*d);
+                out.push(entry.described[i].1);
             }
         }
         self.us += t.elapsed().as_secs_f64() * 1e6;
