@@ -7,9 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use quarry::core::Pose2;
-use quarry::data::leg_labels::parse_legs_csv;
+use quarry::data::leg_labels::{LabelledScan, parse_leg_scans_csv};
 use quarry::data::scans_csv::{ScanCsvOptions, parse_scan_meta, read_scans};
-use quarry::repro::lidar::score_labelled;
+use quarry::repro::lidar::{score_label_groups, score_labelled};
 use quarry::trackers::lidar_people::{Detector, LidarPeopleConfig, run_recorded};
 use std::path::PathBuf;
 
@@ -41,11 +41,19 @@ fn main() {
         run.distinct_tracks()
     );
     if let Ok(text) = std::fs::read_to_string(dir.join(format!("{key}_legs.csv"))) {
-        let labels = parse_legs_csv(&text).expect("legs");
-        let e = score_labelled(&run, &labels, cfg.d_match).expect("score");
+        let scans = parse_leg_scans_csv(&text).expect("legs");
+        // the recordings' person: the mean of every leg labelled in the scan
+        let people: Vec<_> = scans.iter().map(LabelledScan::person).collect();
+        let e = score_labelled(&run, &people, cfg.d_match).expect("score");
         println!(
             "person position: {}/{} labelled scans matched, RMSE {:.3} m",
             e.matched, e.labelled, e.rmse_m
+        );
+        // the labels split into people (legs within 0.8 m of each other), each scored alone
+        let g = score_label_groups(&run, &scans, cfg.d_match, cfg.leg_pair_dist).expect("score");
+        println!(
+            "per person: {}/{} matched, RMSE {:.3} m ({} scans label two people or more)",
+            g.matched, g.groups, g.rmse_m, g.multi_group_scans
         );
     }
 }

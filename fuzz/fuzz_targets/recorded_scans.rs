@@ -1,21 +1,25 @@
 //! Fuzz the recorded-scan path of `quarry lidar --scans`: the legs CSV parser, and the scan CSV
 //! reader feeding `run_recorded` (background, then the tracker the first byte picks: Table 1,
 //! `kf-gnn` or `jipda`, with the contour or the leg detector; bit 3 turns on the background's
-//! early start) and `score_labelled`.
+//! early start) and both scores, `score_labelled` and `score_label_groups` (the label groups of
+//! `parse_leg_scans_csv`, which must average to `parse_legs_csv`'s people).
 //! Any bytes: a result or a typed error, never a panic.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use quarry_core::{Pose2, ScanGeometry};
-use quarry_data::leg_labels::parse_legs_csv;
+use quarry_data::leg_labels::{LabelledScan, parse_leg_scans_csv, parse_legs_csv};
 use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, ScanCsvReader};
-use quarry_repro::lidar::score_labelled;
+use quarry_repro::lidar::{score_label_groups, score_labelled};
 use quarry_trackers::TrackerConfig;
 use quarry_trackers::lidar_people::{Detector, LidarPeopleConfig, Preset, run_recorded};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
     let labels = parse_legs_csv(&text).unwrap_or_default();
+    let label_scans = parse_leg_scans_csv(&text).unwrap_or_default();
+    let people: Vec<_> = label_scans.iter().map(LabelledScan::person).collect();
+    assert_eq!(people, labels);
     let g = ScanGeometry {
         n_beams: 8,
         angle_min: -1.0,
@@ -51,5 +55,12 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(run) = run_recorded(&cfg, &g, Pose2::default(), &scans, 3.0) {
         assert!(run.frames.len() <= scans.len());
         let _ = score_labelled(&run, &labels, 0.5);
+        let link = [0.8, 0.1, 3.0, 0.0][usize::from(pick >> 6)];
+        if let Ok(s) = score_label_groups(&run, &label_scans, 0.5, link) {
+            assert!(s.matched <= s.groups && s.ceiling_matched <= s.labelled);
+            assert!(s.labelled <= s.groups && s.multi_group_scans <= s.labelled);
+        } else {
+            assert!(link == 0.0, "only the zero link is refused");
+        }
     }
 });

@@ -447,6 +447,13 @@ fn lidar_detector_legs_runs_jipda_and_refuses_the_table1_presets() {
         stderr.contains("detector = legs needs preset = kf-gnn"),
         "{stderr}"
     );
+    // the backfill reworks a recording: the simulated room refuses it
+    let (code, _, stderr) = quarry(&["lidar", "--backfill", "--frames", "10"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("--backfill") && stderr.contains("--scans"),
+        "{stderr}"
+    );
     let Some(sh) = shared() else { return };
     let data = sh.join("data/leg-tracker");
     if !data.join("scan_meta.json").exists() {
@@ -485,6 +492,30 @@ fn lidar_detector_legs_runs_jipda_and_refuses_the_table1_presets() {
     // the bar chart is a real image of the chart's size
     let img = image::open(out.join("track_counts.png")).unwrap();
     assert_eq!((img.width(), img.height()), (800, 500));
+    // per person: one walker in every labelled scan, so 83 people, all reachable
+    let groups = &v["label_groups"];
+    assert_eq!(groups["groups"], 83, "{v}");
+    assert_eq!(groups["ceiling_matched"], 83, "{v}");
+    assert_eq!(v["backfilled_rows"], 0, "{v}");
+    // offline, the held-back scans of the walker's track are reported too
+    let (code, stdout, stderr) = quarry(&[
+        "--json",
+        "lidar",
+        "--scans",
+        data.join("positive_2_scans.csv").to_str().unwrap(),
+        "--legs",
+        data.join("positive_2_legs.csv").to_str().unwrap(),
+        "--detector",
+        "legs",
+        "--backfill",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let b: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert!(b["backfilled_rows"].as_u64().unwrap() > 0, "{b}");
+    assert!(
+        b["label_groups"]["matched"].as_u64() > groups["matched"].as_u64(),
+        "{b}"
+    );
 }
 
 #[test]

@@ -30,7 +30,7 @@ pub use calibration::{calibrate_scenario, rough_poses, scanner_infos};
 pub use metrics::{
     EvalFrame, LocStats, Paper003Metrics, evaluate_paper003, loc_stats, match_within, paper_success,
 };
-pub use recorded::{LabelledError, score_labelled};
+pub use recorded::{LabelGroupScore, LabelledError, score_label_groups, score_labelled};
 pub use room::{
     RoomRun, run_room, run_room_default, run_room_default_observed, run_room_default_until,
 };

@@ -67,6 +67,7 @@ pub struct JipdaPeopleTracker<C, R> {
     extra: BTreeMap<u32, Extra>,
     t_last: Option<TimeUs>,
     last: Vec<LidarTrack>,
+    withheld: Vec<LidarTrack>,
 }
 
 impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
@@ -94,12 +95,21 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
             extra: BTreeMap::new(),
             t_last: None,
             last: Vec::new(),
+            withheld: Vec::new(),
         })
     }
 
     /// The rows of the last processed frame.
     pub fn last_rows(&self) -> &[LidarTrack] {
         &self.last
+    }
+
+    /// The rows the last frame held back: tracks detected in it but not reported, because
+    /// they are not confirmed yet or have not walked `leg_min_travel_m` (`born` is false).
+    /// An offline run can report them once their id is reported
+    /// ([`RecordedRun::backfill`](super::RecordedRun::backfill)).
+    pub fn last_withheld(&self) -> &[LidarTrack] {
+        &self.withheld
     }
 
     /// The JIPDA tracker inside (its tracks, tentative ones included).
@@ -113,6 +123,7 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
         stamp: Stamp,
         frame: &FusedPoints,
     ) -> Result<Vec<TrackReport>, TrackerError> {
+        self.withheld.clear();
         let Some(pts) = frame_points(frame)? else {
             self.last.clear();
             return Ok(Vec::new());
@@ -153,12 +164,6 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
                 }
             }
             ex.misses = if tr.detected { 0 } else { ex.misses + 1 };
-            if tr.state(&self.inner_cfg) != TrackState::Confirmed
-                || !ex.moved
-                || ex.misses > self.max_coast_report
-            {
-                continue;
-            }
             let coasting = !tr.detected;
             let row = LidarTrack {
                 id,
@@ -172,6 +177,15 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
                 born: !ex.reported,
                 gate_replaced: false,
             };
+            if tr.state(&self.inner_cfg) != TrackState::Confirmed || !ex.moved {
+                if tr.detected && tr.state(&self.inner_cfg) != TrackState::Deleted {
+                    self.withheld.push(LidarTrack { born: false, ..row });
+                }
+                continue;
+            }
+            if ex.misses > self.max_coast_report {
+                continue;
+            }
             ex.reported = true;
             let mut r = report(stamp, &row, true);
             if coasting {
@@ -387,6 +401,82 @@ mod tests {
             "the test needs a coasting drift ({max_drift:.2} m)"
         );
         assert_eq!(reported, 0, "static clutter reported");
+    }
+
+    /// A person who stands for 30 frames, then walks: the travel rule holds their track back
+    /// while they stand, and the held-back rows are there for an offline backfill, which then
+    /// reports them from their first confirmed frame; static clutter beside them is held back
+    /// too but never reported, so never backfilled. Both trackers that hold tracks back.
+    #[test]
+    fn with_legs_a_standing_person_is_backfilled_and_clutter_is_not() {
+        use super::super::{RecordedFrame, RecordedRun};
+        for preset in [Preset::Jipda, Preset::KfGnn] {
+            let cfg = LidarPeopleConfig {
+                detector: Detector::Legs,
+                ..LidarPeopleConfig::preset(preset)
+            };
+            let mut tr = DefaultLidarTracker::from_config(&cfg).unwrap();
+            let mut run = RecordedRun::default();
+            for k in 0..60u64 {
+                let x = if k < 30 {
+                    2.0
+                } else {
+                    2.0 + 0.06 * (k - 29) as f64
+                };
+                let mut pts = legs(x, x + 0.3, 3.0);
+                pts.extend(legs(-2.0, -1.7, 1.0)); // clutter: a leg pair that never moves
+                tr.step(Stamp::from_frame(k, 0.05), &frame(k, pts)).unwrap();
+                run.frames.push(RecordedFrame {
+                    t: TimeUs(50_000 * k as i64),
+                    dynamic: 0,
+                    tracks: tr.last_rows().to_vec(),
+                    withheld: tr.last_withheld().to_vec(),
+                });
+            }
+            let first_report = |run: &RecordedRun| {
+                run.frames
+                    .iter()
+                    .position(|f| !f.tracks.is_empty())
+                    .unwrap()
+            };
+            let online = first_report(&run);
+            assert!(
+                online >= 30,
+                "{preset:?}: reported at {online}, while standing"
+            );
+            let held: usize = run.frames[..online].iter().map(|f| f.withheld.len()).sum();
+            assert!(
+                held >= 2 * 25,
+                "{preset:?}: {held} rows held back (person and clutter)"
+            );
+            let added = run.backfill();
+            let offline = first_report(&run);
+            assert!(offline <= 5, "{preset:?}: backfilled from {offline}");
+            assert!(added >= online - offline, "{preset:?}: {added} rows added");
+            // one id, the person's, in every frame from `offline` on; the clutter never
+            let ids: std::collections::BTreeSet<u32> = run
+                .frames
+                .iter()
+                .flat_map(|f| f.tracks.iter().map(|t| t.id))
+                .collect();
+            assert_eq!(ids.len(), 1, "{preset:?}: {ids:?}");
+            for f in &run.frames[offline..] {
+                assert_eq!(f.tracks.len(), 1, "{preset:?}");
+                assert!(
+                    f.tracks[0].x > 1.5,
+                    "{preset:?}: the clutter was backfilled"
+                );
+                assert!(f.withheld.is_empty());
+            }
+            assert!(run.frames[offline].tracks[0].born);
+            let borns = run
+                .frames
+                .iter()
+                .flat_map(|f| &f.tracks)
+                .filter(|t| t.born)
+                .count();
+            assert_eq!(borns, 1, "{preset:?}");
+        }
     }
 
     /// Two walkers pass each other 0.3 m apart (as on positive_3 at t = 20.5 s), and the

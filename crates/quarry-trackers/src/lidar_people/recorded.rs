@@ -36,8 +36,11 @@ pub struct RecordedFrame {
     pub t: TimeUs,
     /// Beams labelled dynamic.
     pub dynamic: usize,
-    /// Tracks reported for this scan.
+    /// Tracks reported for this scan, in id order.
     pub tracks: Vec<LidarTrack>,
+    /// Tracks detected in this scan but held back (not confirmed yet, or not yet walked
+    /// `leg_min_travel_m`), in id order: what [`RecordedRun::backfill`] may report.
+    pub withheld: Vec<LidarTrack>,
 }
 
 /// The result of [`run_recorded`].
@@ -86,6 +89,80 @@ impl RecordedRun {
             h[f.tracks.len()] += 1;
         }
         h
+    }
+
+    /// Offline retrodiction: a track that is reported at some scan is also reported at the
+    /// earlier scans where it was detected but held back (tentative, or not yet walked
+    /// `leg_min_travel_m`), with the estimate it had then. A live tracker cannot know at
+    /// birth that a track will turn out to be a person; a recording can, once it has seen the
+    /// whole track. A person who stands still, then walks, is then reported from their first
+    /// detection instead of from their first 0.5 m; clutter that never qualifies is never
+    /// reported. Rows already reported are unchanged, except that `born` moves to the
+    /// track's first row. Returns the number of rows added; every `withheld` list is
+    /// emptied.
+    ///
+    /// ```
+    /// use quarry_core::TimeUs;
+    /// use quarry_trackers::lidar_people::{LidarTrack, RecordedFrame, RecordedRun};
+    /// let row = |id: u32, born: bool| LidarTrack {
+    ///     id, x: 0.0, y: 0.0, alpha: 0.0, vx: 0.0, vy: 0.0, support: 0, rms: 0.0,
+    ///     born, gate_replaced: false,
+    /// };
+    /// let frame = |t: i64, tracks: Vec<LidarTrack>, withheld: Vec<LidarTrack>| RecordedFrame {
+    ///     t: TimeUs(t), dynamic: 0, tracks, withheld,
+    /// };
+    /// // track 1 held back for two scans, then reported; track 2 never reported
+    /// let mut run = RecordedRun {
+    ///     frames: vec![
+    ///         frame(0, vec![], vec![row(1, false), row(2, false)]),
+    ///         frame(1, vec![], vec![row(1, false)]),
+    ///         frame(2, vec![row(1, true)], vec![row(2, false)]),
+    ///     ],
+    ///     ..RecordedRun::default()
+    /// };
+    /// assert_eq!(run.backfill(), 2);
+    /// assert_eq!(run.track_lifetimes(), vec![(1, 3)]);
+    /// assert!(run.frames[0].tracks[0].born && !run.frames[2].tracks[0].born);
+    /// ```
+    pub fn backfill(&mut self) -> usize {
+        let mut first: std::collections::BTreeMap<u32, usize> = std::collections::BTreeMap::new();
+        for (k, f) in self.frames.iter().enumerate() {
+            for t in &f.tracks {
+                first.entry(t.id).or_insert(k);
+            }
+        }
+        let mut earliest: std::collections::BTreeMap<u32, usize> =
+            std::collections::BTreeMap::new();
+        let mut added = 0;
+        for (k, f) in self.frames.iter_mut().enumerate() {
+            let withheld = std::mem::take(&mut f.withheld);
+            let before = f.tracks.len();
+            for w in withheld {
+                if first.get(&w.id).is_some_and(|&k0| k < k0)
+                    && !f.tracks.iter().any(|t| t.id == w.id)
+                {
+                    earliest.entry(w.id).or_insert(k);
+                    f.tracks.push(LidarTrack { born: false, ..w });
+                }
+            }
+            if f.tracks.len() > before {
+                added += f.tracks.len() - before;
+                f.tracks.sort_by_key(|t| t.id);
+            }
+        }
+        for (id, k) in earliest {
+            for t in &mut self.frames[first[&id]].tracks {
+                if t.id == id {
+                    t.born = false;
+                }
+            }
+            for t in &mut self.frames[k].tracks {
+                if t.id == id {
+                    t.born = true;
+                }
+            }
+        }
+        added
     }
 
     /// Lifetimes of the tracks in scans (one entry per id, sorted by id).
@@ -157,6 +234,7 @@ pub fn run_recorded(
                 t: scan.t,
                 dynamic: labels.iter().filter(|l| **l == BeamLabel::Dynamic).count(),
                 tracks: Vec::new(),
+                withheld: Vec::new(),
             });
             continue;
         }
@@ -191,6 +269,7 @@ pub fn run_recorded(
             t: scan.t,
             dynamic: frame.points.len(),
             tracks: tracker.last_rows().to_vec(),
+            withheld: tracker.last_withheld().to_vec(),
         });
     }
     Ok(run)
@@ -337,5 +416,79 @@ mod tests {
         let (spec, first) = run_with(0.0);
         assert!(first >= 20, "first track at scan {first}");
         assert!(spec.distinct_tracks() >= 1);
+    }
+
+    fn row(id: u32, x: f64, born: bool) -> LidarTrack {
+        LidarTrack {
+            id,
+            x,
+            y: 0.0,
+            alpha: 0.0,
+            vx: 0.0,
+            vy: 0.0,
+            support: 1,
+            rms: 0.0,
+            born,
+            gate_replaced: false,
+        }
+    }
+
+    proptest::proptest! {
+        /// Backfill keeps every reported row (only `born` may move to an earlier row of the
+        /// same id), adds only rows of ids reported somewhere, at frames before their first
+        /// report, never two rows of one id in a frame, keeps each frame in id order, and
+        /// empties every `withheld`.
+        #[test]
+        fn backfill_only_adds_held_back_rows_of_reported_ids(
+            frames in proptest::collection::vec(
+                (proptest::collection::btree_set(0u32..6, 0..4),
+                 proptest::collection::btree_set(0u32..6, 0..4)),
+                0..30),
+        ) {
+            let mut run = RecordedRun::default();
+            let mut seen = std::collections::BTreeSet::new();
+            for (k, (rep, held)) in frames.iter().enumerate() {
+                run.frames.push(RecordedFrame {
+                    t: TimeUs(k as i64),
+                    dynamic: 0,
+                    tracks: rep.iter().map(|&id| row(id, k as f64, seen.insert(id))).collect(),
+                    withheld: held.iter().map(|&id| row(id, -(k as f64), false)).collect(),
+                });
+            }
+            let before = run.clone();
+            let added = run.backfill();
+            let mut first = std::collections::BTreeMap::new();
+            for (k, f) in before.frames.iter().enumerate() {
+                for t in &f.tracks {
+                    first.entry(t.id).or_insert(k);
+                }
+            }
+            let mut n_added = 0;
+            for (k, (a, b)) in run.frames.iter().zip(&before.frames).enumerate() {
+                proptest::prop_assert!(a.withheld.is_empty());
+                proptest::prop_assert!(a.tracks.windows(2).all(|w| w[0].id < w[1].id));
+                for t in &b.tracks {
+                    let now = a.tracks.iter().find(|u| u.id == t.id);
+                    let kept = now.is_some_and(|u| LidarTrack { born: t.born, ..*u } == *t);
+                    proptest::prop_assert!(kept, "a reported row changed");
+                }
+                for t in &a.tracks {
+                    if b.tracks.iter().any(|u| u.id == t.id) {
+                        continue;
+                    }
+                    n_added += 1;
+                    proptest::prop_assert!(first.get(&t.id).is_some_and(|&k0| k < k0));
+                    proptest::prop_assert!(b.withheld.iter().any(|w| w.id == t.id && w.x == t.x));
+                }
+            }
+            proptest::prop_assert_eq!(n_added, added);
+            // one born row per id, on its first row
+            let mut born_seen = std::collections::BTreeSet::new();
+            for f in &run.frames {
+                for t in &f.tracks {
+                    proptest::prop_assert_eq!(t.born, born_seen.insert(t.id));
+                }
+            }
+        }
     }
 }

@@ -625,6 +625,7 @@ pub struct KfGnnTracker<C, R> {
     next_id: u32,
     t_last: Option<TimeUs>,
     last: Vec<LidarTrack>,
+    withheld: Vec<LidarTrack>,
 }
 
 impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
@@ -662,6 +663,7 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
             next_id: 0,
             t_last: None,
             last: Vec::new(),
+            withheld: Vec::new(),
         })
     }
 
@@ -670,12 +672,21 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         &self.last
     }
 
+    /// The rows the last frame held back: tracks detected in it but not reported, because
+    /// they are not confirmed yet or have not walked `leg_min_travel_m` (`born` is false).
+    /// An offline run can report them once their id is reported
+    /// ([`RecordedRun::backfill`](super::RecordedRun::backfill)).
+    pub fn last_withheld(&self) -> &[LidarTrack] {
+        &self.withheld
+    }
+
     /// Processes one fused frame.
     pub fn process(
         &mut self,
         stamp: Stamp,
         frame: &FusedPoints,
     ) -> Result<Vec<TrackReport>, TrackerError> {
+        self.withheld.clear();
         let Some(pts) = frame_points(frame)? else {
             self.last.clear();
             return Ok(Vec::new());
@@ -778,12 +789,6 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
         let mut rows = Vec::new();
         let mut reports = Vec::new();
         for tr in &mut self.tracks {
-            if self.life.state(&tr.rec) != TrackState::Confirmed
-                || tr.misses > self.max_coast_report
-                || !tr.moved
-            {
-                continue;
-            }
             let x = tr.kf.mean();
             let row = LidarTrack {
                 id: tr.id,
@@ -797,6 +802,15 @@ impl<C: Clusterer, R: Registration2> KfGnnTracker<C, R> {
                 born: !tr.reported,
                 gate_replaced: false,
             };
+            if self.life.state(&tr.rec) != TrackState::Confirmed || !tr.moved {
+                if tr.misses == 0 {
+                    self.withheld.push(LidarTrack { born: false, ..row });
+                }
+                continue;
+            }
+            if tr.misses > self.max_coast_report {
+                continue;
+            }
             tr.reported = true;
             let mut r = report(stamp, &row, true);
             if tr.misses > 0 {
@@ -892,6 +906,16 @@ impl<C: Clusterer, R: Registration2> LidarPeopleTracker<C, R> {
             Self::Table1(t) => t.last_rows(),
             Self::KfGnn(t) => t.last_rows(),
             Self::Jipda(t) => t.last_rows(),
+        }
+    }
+
+    /// The rows the last frame held back (detected, not yet confirmed or not yet walked
+    /// `leg_min_travel_m`); always empty for Table 1, which reports every track it keeps.
+    pub fn last_withheld(&self) -> &[LidarTrack] {
+        match self {
+            Self::Table1(_) => &[],
+            Self::KfGnn(t) => t.last_withheld(),
+            Self::Jipda(t) => t.last_withheld(),
         }
     }
 }
