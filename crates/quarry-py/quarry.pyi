@@ -375,9 +375,12 @@ def track_lidar(
     preset: Literal["faithful", "literal", "kf-gnn", "jipda"] = "faithful",
     config_toml: str | None = None,
     gap_factor: float = 3.0,
+    backfill: bool = False,
 ) -> F64:
     """The laser people tracker of spec 003 on one scanner's scans (T, n_beams) in metres.
 
+    backfill (offline; kf-gnn and jipda): once a track is reported, also report it at the
+    earlier scans where it was detected but held back (tentative, or not yet walked).
     Returns rows scan, t, id, x, y, vx, vy, alpha, rms (world metres)."""
 
 def track_rgbd(

@@ -142,10 +142,12 @@ pub fn track_video<'py>(
 /// `(T,)` seconds; the beam geometry (`angle_min`, `angle_increment` in radians, ranges in
 /// metres, `scan_period` seconds). `preset` `"faithful"`, `"literal"`, `"kf-gnn"` or `"jipda"`;
 /// `config_toml` TOML overlaid on it. The first `window_m / 2` scans fill the background window
-/// and carry no tracks. Returns float64 rows `scan, t, id, x, y, vx, vy, alpha, rms` (scan =
-/// 0-based index, world metres).
+/// and carry no tracks. `backfill` (offline; `kf-gnn` and `jipda`): a track is also reported at
+/// the earlier scans where it was detected but held back (tentative, or not yet walked
+/// `leg_min_travel_m`), once it is reported. Returns float64 rows `scan, t, id, x, y, vx, vy,
+/// alpha, rms` (scan = 0-based index, world metres).
 #[pyfunction]
-#[pyo3(signature = (scans, stamps, angle_min, angle_increment, range_min = 0.1, range_max = 30.0, scan_period = 0.025, pose = (0.0, 0.0, 0.0), preset = "faithful", config_toml = None, gap_factor = 3.0))]
+#[pyo3(signature = (scans, stamps, angle_min, angle_increment, range_min = 0.1, range_max = 30.0, scan_period = 0.025, pose = (0.0, 0.0, 0.0), preset = "faithful", config_toml = None, gap_factor = 3.0, backfill = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn track_lidar<'py>(
     py: Python<'py>,
@@ -160,6 +162,7 @@ pub fn track_lidar<'py>(
     preset: &str,
     config_toml: Option<&str>,
     gap_factor: f64,
+    backfill: bool,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let s = args::array::<f64>(
         scans,
@@ -200,9 +203,12 @@ pub fn track_lidar<'py>(
         }
         polar.push(crate::cloud::polar_scan(ranges, ts, seq, geometry)?);
     }
-    let run = py
+    let mut run = py
         .detach(|| run_recorded(&cfg, &geometry, pose, &polar, gap_factor))
         .map_err(map_err("track_lidar"))?;
+    if backfill {
+        run.backfill();
+    }
     // processed scans map back to their input index through their (strictly increasing) stamps
     let mut index = std::collections::HashMap::new();
     for (k, sc) in polar.iter().enumerate() {
