@@ -461,20 +461,27 @@ fn lidar_detector_legs_runs_jipda_and_refuses_the_table1_presets() {
         return;
     }
     let out = d.join("out");
-    let (code, stdout, stderr) = quarry(&[
-        "--json",
-        "lidar",
-        "--scans",
-        data.join("positive_2_scans.csv").to_str().unwrap(),
-        "--legs",
-        data.join("positive_2_legs.csv").to_str().unwrap(),
-        "--detector",
-        "legs",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
-    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let (scans, legs) = (
+        data.join("positive_2_scans.csv"),
+        data.join("positive_2_legs.csv"),
+    );
+    let positive_2 = |more: &[&str]| {
+        let mut a = vec![
+            "--json",
+            "lidar",
+            "--scans",
+            scans.to_str().unwrap(),
+            "--legs",
+            legs.to_str().unwrap(),
+            "--detector",
+            "legs",
+        ];
+        a.extend_from_slice(more);
+        let (code, stdout, stderr) = quarry(&a);
+        assert_eq!(code, 0, "{stderr}");
+        serde_json::from_str::<Value>(stdout.trim()).unwrap()
+    };
+    let v = positive_2(&["--out", out.to_str().unwrap()]);
     assert_eq!(v["preset"], "jipda", "{v}");
     assert_eq!(v["detector"], "legs", "{v}");
     // the jipda preset's background starts early: no warm-up scans
@@ -498,19 +505,7 @@ fn lidar_detector_legs_runs_jipda_and_refuses_the_table1_presets() {
     assert_eq!(groups["ceiling_matched"], 83, "{v}");
     assert_eq!(v["backfilled_rows"], 0, "{v}");
     // offline, the held-back scans of the walker's track are reported too
-    let (code, stdout, stderr) = quarry(&[
-        "--json",
-        "lidar",
-        "--scans",
-        data.join("positive_2_scans.csv").to_str().unwrap(),
-        "--legs",
-        data.join("positive_2_legs.csv").to_str().unwrap(),
-        "--detector",
-        "legs",
-        "--backfill",
-    ]);
-    assert_eq!(code, 0, "{stderr}");
-    let b: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let b = positive_2(&["--backfill"]);
     assert!(b["backfilled_rows"].as_u64().unwrap() > 0, "{b}");
     assert!(
         b["label_groups"]["matched"].as_u64() > groups["matched"].as_u64(),

@@ -31,6 +31,15 @@ pub struct LabelledError {
     pub rmse_two_legs_m: f64,
 }
 
+/// Root mean square of `v`; NaN when empty.
+fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
+    }
+}
+
 /// Scores `run` against `labels`: for each labelled stamp present in the run, the nearest track
 /// within `match_radius` (metres, finite and > 0) is the match. Labels whose stamp is not in
 /// the run are ignored.
@@ -62,13 +71,6 @@ pub fn score_labelled(
             }
         }
     }
-    let rms = |v: &[f64]| {
-        if v.is_empty() {
-            f64::NAN
-        } else {
-            (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
-        }
-    };
     out.matched = errs.len();
     out.matched_two_legs = errs2.len();
     out.rmse_m = rms(&errs);
@@ -198,13 +200,6 @@ pub fn score_label_groups(
             }
         }
     }
-    let rms = |v: &[f64]| {
-        if v.is_empty() {
-            f64::NAN
-        } else {
-            (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
-        }
-    };
     out.matched = errs.len();
     out.rmse_m = rms(&errs);
     out.ceiling_matched = ceiling.len();
