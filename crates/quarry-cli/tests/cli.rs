@@ -242,7 +242,9 @@ fn demo_real_rows_with_data_and_a_note_without() {
         value("lidar-legs (real)", "person position RMSE") <= 0.075,
         "{v}"
     );
-    assert_eq!(v["rows"].as_array().unwrap().len(), 3, "{v}");
+    // per person (stop 37): 184/207 = 88.9 %
+    assert!(value("lidar-legs (real)", "labelled people") >= 85.0, "{v}");
+    assert_eq!(v["rows"].as_array().unwrap().len(), 4, "{v}");
 }
 
 #[test]

@@ -44,7 +44,8 @@ the matched centre RMSE.
 With --data DIR, two rows on recordings nobody here made (skipped, with a note, where DIR does \
 not hold them):
   lidar-legs (real)   the jipda preset with the leg detector on DIR/leg-tracker/positive_1 (one \
-leg-height scanner; Leigh et al. 2015): labelled scans matched within 0.5 m, RMSE, long tracks.
+leg-height scanner; Leigh et al. 2015): labelled scans matched within 0.5 m, RMSE, labelled \
+people matched (a scan's legs split into people), long tracks.
   watershed-sift (real)   the robust profile on DIR/pets09-s2l1 frames 1-200 (PETS 2009 S2L1, \
 MOTChallenge layout): MOTA, IDF1, HOTA, beside the best peer's.
 

@@ -11,7 +11,7 @@ use crate::record::{self, Mcap, McapInfo};
 use clap::Args;
 use plotters::prelude::*;
 use quarry_core::{Point2, Pose2, TimeUs};
-use quarry_data::leg_labels::{LabelledScan, parse_leg_scans_csv, parse_legs_csv};
+use quarry_data::leg_labels::{LabelledScan, parse_leg_scans_csv};
 use quarry_data::scans_csv::{RowPolicy, ScanCsvOptions, parse_scan_meta, read_scans};
 use quarry_repro::lidar::{
     self as repro, EvalFrame, LabelGroupScore, LabelledError, Paper003Metrics, RoomRun,
@@ -1266,8 +1266,10 @@ pub fn demo_real_rows(data: &Path) -> Result<Option<Vec<super::demo::Row>>, CmdE
     let ms = t.elapsed().as_secs_f64() * 1e3 / polar.len().max(1) as f64;
     let legs = dir.join("positive_1_legs.csv");
     let text = std::fs::read_to_string(&legs).map_err(at(&legs))?;
-    let labels = parse_legs_csv(&text).map_err(|e| format!("{}: {e}", legs.display()))?;
+    let label_scans = parse_leg_scans_csv(&text).map_err(|e| format!("{}: {e}", legs.display()))?;
+    let labels: Vec<_> = label_scans.iter().map(LabelledScan::person).collect();
     let e = score_labelled(&run, &labels, cfg.d_match)?;
+    let g = score_label_groups(&run, &label_scans, cfg.d_match, cfg.leg_pair_dist)?;
     let min_scans = (1.0 / geometry.scan_period).ceil() as usize;
     let long = run
         .track_lifetimes()
@@ -1290,6 +1292,10 @@ pub fn demo_real_rows(data: &Path) -> Result<Option<Vec<super::demo::Row>>, CmdE
             100.0 * e.matched as f64 / e.labelled.max(1) as f64,
         ),
         row("person position RMSE (m)", e.rmse_m),
+        row(
+            "labelled people (legs within 0.8 m of each other) with a track within 0.5 m (%)",
+            100.0 * g.matched as f64 / g.groups.max(1) as f64,
+        ),
         row("tracks living >= 1 s", long as f64),
     ]))
 }
