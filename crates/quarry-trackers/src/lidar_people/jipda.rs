@@ -405,7 +405,7 @@ mod tests {
 
     /// A person who stands for 30 frames, then walks: the travel rule holds their track back
     /// while they stand, and the held-back rows are there for an offline backfill, which then
-    /// reports them from their first confirmed frame; static clutter beside them is held back
+    /// reports the track from its first detection on; static clutter beside them is held back
     /// too but never reported, so never backfilled. Both trackers that hold tracks back.
     #[test]
     fn with_legs_a_standing_person_is_backfilled_and_clutter_is_not() {
