@@ -580,3 +580,63 @@ fn robust_pairs_ignore_the_walkers_own_ghost() {
     assert_eq!(ids.len(), 1, "one walker, one id: {ids:?}");
     assert!(boxes >= 18, "the walker is followed: {boxes} boxes");
 }
+
+/// `robust` (`fg_pairs_group_companion`): the side-by-side pair of the tests above (a target
+/// and its companion) walks right while a third walker walks left at the same height and
+/// passes behind it. The host and the third walker's target form a two-member occlusion
+/// group; the group's pair test sees the pair's two people. Without the rule the two members
+/// take those two parts and the companion ends, so the pair's walkers change identities; with
+/// it the host and its companion take the parts, the third is hidden, and each walker of the
+/// pair keeps the id it had before the crossing.
+#[test]
+fn robust_pair_passed_behind_keeps_its_ids() {
+    let [a, b] = side_by_side();
+    // the third walker first in the list: drawn first, so behind the pair
+    let c = Walker {
+        start: [236.0, 60.0],
+        vel: [-2.0, 0.0],
+        t0: 0,
+        mean: 75.0,
+    };
+    let walkers = [c, a, b];
+    let frames = video(&walkers, 110, 21);
+    let at = |i: usize, t: u64| centre(&walkers[i + 1], t).unwrap();
+    let ids = |group: bool, range: std::ops::Range<usize>| {
+        let mut cfg = config(true);
+        cfg.sigma = 10.0;
+        cfg.fg_pairs_group_companion = group;
+        let out = run(cfg, &frames);
+        pair_coverage(&out, at, range)
+    };
+    let (before, after) = (ids(false, 30..44), ids(false, 62..100));
+    eprintln!("without: before {before:?}, after {after:?}");
+    assert_each_walker_boxed_under_its_own_id(&before, 12);
+    assert!(
+        before[0].1 != after[0].1 || before[1].1 != after[1].1,
+        "the test needs the failure: without the rule an identity changes ({before:?}, {after:?})"
+    );
+    let (before, after) = (ids(true, 30..44), ids(true, 62..100));
+    eprintln!("with: before {before:?}, after {after:?}");
+    assert_each_walker_boxed_under_its_own_id(&before, 12);
+    assert_each_walker_boxed_under_its_own_id(&after, 34);
+    assert_eq!(
+        (&before[0].1, &before[1].1),
+        (&after[0].1, &after[1].1),
+        "each walker of the pair keeps its id"
+    );
+    // the third walker is boxed again once it has come out on the other side
+    let mut cfg = config(true);
+    cfg.sigma = 10.0;
+    let out = run(cfg, &frames);
+    let third = |range| {
+        pair_coverage(
+            &out,
+            |i, t| centre(&walkers[usize::from(i != 0)], t).unwrap(),
+            range,
+        )[0]
+        .clone()
+    };
+    let (seen, again) = (third(20..40), third(80..100));
+    eprintln!("third walker: frames 20-39 {seen:?}, 80-99 {again:?}");
+    assert!(again.0 >= 16 && again.1 == seen.1, "{seen:?} {again:?}");
+}

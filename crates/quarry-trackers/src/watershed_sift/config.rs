@@ -317,6 +317,18 @@ pub struct WatershedSiftConfig {
     /// person wide and with a column holding half the fitted height); no new number, and a
     /// pair is never *started* without a gap.
     pub fg_pairs_hold: bool,
+    /// A group member's companion is a third person \[ext, ours; `robust`: true; needs
+    /// `fg_pairs`\]: when a two-member occlusion group's foreground passes the pair test and one
+    /// member hosts a companion (the group holds three people, two of them visible), the two
+    /// parts go to the two of the three — the members at their last reported boxes, the
+    /// companion at its last place — that lie nearest them (the least total distance). The
+    /// companion is reported on its part as on its host's pair; a member left without a part
+    /// is hidden behind the others and not reported until it is seen again. Without it the
+    /// companion gets no part (its host, occluded, has no pair test of its own), is hidden and
+    /// ends, and the two members take the two visible people: on PETS09-S2L1 frames 156-172 a
+    /// walker passing behind the red jacket and the black coat moves both members one person
+    /// along (docs/video-tracker.md, "The three-person chain"). No new number.
+    pub fg_pairs_group_companion: bool,
     /// Smallest uncovered foreground blob for a birth, as a fraction of w·h [ours, `robust`:
     /// 0.3 — a silhouette fills about 60 % of its box; half of it must be uncovered].
     pub birth_min_frac: f64,
@@ -391,6 +403,7 @@ impl WatershedSiftConfig {
             fg_skip_background: false,
             fg_pairs: false,
             fg_pairs_hold: false,
+            fg_pairs_group_companion: false,
             birth_min_frac: 0.3,
             birth_frames: 3,
         }
@@ -417,6 +430,7 @@ impl WatershedSiftConfig {
             fg_skip_background: true,
             fg_pairs: true,
             fg_pairs_hold: true,
+            fg_pairs_group_companion: true,
             bg_selective: true,
             stuck_needs_no_fg: true,
             ..Self::paper()

@@ -1557,6 +1557,8 @@ impl WatershedSiftTracker {
                 pairs[k] = Some([host, other]);
             }
         }
+        // members of an occlusion group hidden behind two other people (see below)
+        let mut hidden = vec![false; self.targets.len()];
         // [ext] fg_pairs, occlusion groups: two targets tracked through an occlusion on the
         // same regions whose foreground is a pair side by side are each fitted to one part
         // (the assignment nearer their last reported boxes); other groups keep their last fits
@@ -1616,25 +1618,58 @@ impl WatershedSiftTracker {
                     // each member keeps to the part nearer its last reported box (continuity:
                     // the centres located through the occlusion are the less certain)
                     let at = |m: &Target| m.report.map_or(m.centre, |b| [b.cx, b.cy]);
-                    let d = |b: &BBox, m: &Target| {
-                        let a = at(m);
-                        (b.cx - a[0]).hypot(b.cy - a[1])
-                    };
-                    let (b0, b1) = if d(&p, m0) + d(&q, m1) <= d(&q, m0) + d(&p, m1) {
-                        (p, q)
-                    } else {
-                        (q, p)
-                    };
-                    for (k, b) in [(k0, b0), (k1, b1)] {
-                        let ctr = self.targets[k].centre;
-                        fits[k] = Some([b.cx - ctr[0], b.cy - ctr[1], b.w, b.h]);
+                    let d = |b: &BBox, a: [f64; 2]| (b.cx - a[0]).hypot(b.cy - a[1]);
+                    // [ext] fg_pairs_group_companion: a member's companion is a third person,
+                    // at its last place; the two parts go to the two candidates nearest them
+                    let hosted = cfg
+                        .fg_pairs_group_companion
+                        .then(|| {
+                            [k0, k1].into_iter().find_map(|mk| {
+                                let id = self.targets[mk].id;
+                                let c = self.targets.iter().position(|o| o.host == Some(id))?;
+                                Some((mk, c))
+                            })
+                        })
+                        .flatten();
+                    let mut cands = vec![(k0, at(m0)), (k1, at(m1))];
+                    if let Some((_, c)) = hosted {
+                        cands.push((c, self.targets[c].centre));
+                    }
+                    // ordered pairs (gets p, gets q), least total distance; ties keep the
+                    // first found (the members, in order)
+                    let mut best: Option<(f64, usize, usize)> = None;
+                    for (i, &(_, ai)) in cands.iter().enumerate() {
+                        for (j, &(_, aj)) in cands.iter().enumerate() {
+                            let cost = d(&p, ai) + d(&q, aj);
+                            if i != j && best.is_none_or(|(c, _, _)| cost < c) {
+                                best = Some((cost, i, j));
+                            }
+                        }
+                    }
+                    if let Some((_, i, j)) = best {
+                        for (ci, b) in [(i, p), (j, q)] {
+                            let k = cands[ci].0;
+                            if ci == 2 {
+                                // the companion, reported on its part as on its host's pair
+                                if let Some((host, _)) = hosted {
+                                    pairs[host] = Some([b, b]);
+                                }
+                            } else {
+                                let ctr = self.targets[k].centre;
+                                fits[k] = Some([b.cx - ctr[0], b.cy - ctr[1], b.w, b.h]);
+                            }
+                        }
+                        // a member without a part is hidden behind the other two
+                        if let Some(left) = (0..2).find(|&m| m != i && m != j) {
+                            hidden[cands[left].0] = true;
+                        }
                     }
                 }
             }
         }
         let (fg_box, fg_gate) = (cfg.fg_box, cfg.fg_gate);
-        for (tg, fit) in self.targets.iter_mut().zip(fits) {
-            if tg.regions.is_empty() {
+        for ((tg, fit), hide) in self.targets.iter_mut().zip(fits).zip(hidden) {
+            if tg.regions.is_empty() || hide {
                 tg.report = None;
                 continue;
             }
