@@ -1293,7 +1293,10 @@ pub fn demo_real_rows(data: &Path) -> Result<Option<Vec<super::demo::Row>>, CmdE
         ),
         row("person position RMSE (m)", e.rmse_m),
         row(
-            "labelled people (legs within 0.8 m of each other) with a track within 0.5 m (%)",
+            &format!(
+                "labelled people (legs within {} m of each other) with a track within {} m (%)",
+                cfg.leg_pair_dist, cfg.d_match
+            ),
             100.0 * g.matched as f64 / g.groups.max(1) as f64,
         ),
         row("tracks living >= 1 s", long as f64),

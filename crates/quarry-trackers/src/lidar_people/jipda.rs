@@ -177,8 +177,9 @@ impl<C: Clusterer, R: Registration2> JipdaPeopleTracker<C, R> {
                 born: !ex.reported,
                 gate_replaced: false,
             };
-            if tr.state(&self.inner_cfg) != TrackState::Confirmed || !ex.moved {
-                if tr.detected && tr.state(&self.inner_cfg) != TrackState::Deleted {
+            let state = tr.state(&self.inner_cfg);
+            if state != TrackState::Confirmed || !ex.moved {
+                if tr.detected && state != TrackState::Deleted {
                     self.withheld.push(LidarTrack { born: false, ..row });
                 }
                 continue;

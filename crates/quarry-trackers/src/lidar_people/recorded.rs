@@ -131,18 +131,16 @@ impl RecordedRun {
                 first.entry(t.id).or_insert(k);
             }
         }
-        let mut earliest: std::collections::BTreeMap<u32, usize> =
-            std::collections::BTreeMap::new();
+        // an id's first row is reported at `first[id]`: a frame before it holds no row of it
+        let mut backfilled = std::collections::BTreeSet::new();
         let mut added = 0;
         for (k, f) in self.frames.iter_mut().enumerate() {
-            let withheld = std::mem::take(&mut f.withheld);
             let before = f.tracks.len();
-            for w in withheld {
-                if first.get(&w.id).is_some_and(|&k0| k < k0)
-                    && !f.tracks.iter().any(|t| t.id == w.id)
-                {
-                    earliest.entry(w.id).or_insert(k);
-                    f.tracks.push(LidarTrack { born: false, ..w });
+            for w in std::mem::take(&mut f.withheld) {
+                if first.get(&w.id).is_some_and(|&k0| k < k0) {
+                    // the earliest row of the id is its birth
+                    let born = backfilled.insert(w.id);
+                    f.tracks.push(LidarTrack { born, ..w });
                 }
             }
             if f.tracks.len() > before {
@@ -150,15 +148,10 @@ impl RecordedRun {
                 f.tracks.sort_by_key(|t| t.id);
             }
         }
-        for (id, k) in earliest {
+        for id in backfilled {
             for t in &mut self.frames[first[&id]].tracks {
                 if t.id == id {
                     t.born = false;
-                }
-            }
-            for t in &mut self.frames[k].tracks {
-                if t.id == id {
-                    t.born = true;
                 }
             }
         }

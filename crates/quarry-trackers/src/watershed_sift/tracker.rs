@@ -1648,13 +1648,11 @@ impl WatershedSiftTracker {
                     }
                     if let Some((_, i, j)) = best {
                         for (ci, b) in [(i, p), (j, q)] {
-                            let k = cands[ci].0;
-                            if ci == 2 {
+                            if let Some((host, _)) = hosted.filter(|_| ci == 2) {
                                 // the companion, reported on its part as on its host's pair
-                                if let Some((host, _)) = hosted {
-                                    pairs[host] = Some([b, b]);
-                                }
+                                pairs[host] = Some([b, b]);
                             } else {
+                                let k = cands[ci].0;
                                 let ctr = self.targets[k].centre;
                                 fits[k] = Some([b.cx - ctr[0], b.cy - ctr[1], b.w, b.h]);
                             }
