@@ -103,9 +103,19 @@ pub struct Target {
     /// The id this target is reported under: its own [`id`](Self::id), or with `recall_ids`
     /// the id of a lost target whose person it was found on (docs of `recall_ids`).
     pub report_id: TrackId,
-    /// The last frames this target was reported in: (frame, box centre), at most
-    /// [`RECALL_VELOCITY_FRAMES`] + 1 of them (`recall_ids`).
+    /// The last frames this target was reported in with a box fitted to that frame's
+    /// foreground: (frame, box centre), at most [`RECALL_VELOCITY_FRAMES`] + 1 of them
+    /// (`recall_ids`). A box held from an earlier fit is not among them (see `held`).
     reported: VecDeque<(u64, [f64; 2])>,
+    /// The last frame this target was reported in, fitted or held (`recall_ids`).
+    last_shown: Option<u64>,
+    /// This frame's centre is the last frame's: the target is occluded, holds only regions
+    /// of the occlusion, and its pool located it nowhere (§2.14), so nothing placed it.
+    frozen: bool,
+    /// This frame's box repeats the last one: the centre is `frozen` and no box was fitted to
+    /// this frame's foreground. It is no observation of the person, so `recall_ids` does not
+    /// measure motion from it.
+    held: bool,
 }
 
 /// Frames over which a lost target's velocity is measured for `recall_ids`: its last five
@@ -117,22 +127,34 @@ const RECALL_VELOCITY_FRAMES: usize = 5;
 #[derive(Debug, Clone)]
 struct Ended {
     id: TrackId,
+    /// The last frame it was reported in (fitted or held): the recall window counts from it.
     last: u64,
+    /// The last frame its box was fitted, and that box's centre: the prediction starts there.
+    at: u64,
     centre: [f64; 2],
     velocity: [f64; 2],
 }
 
-/// Last reported frame, box centre and velocity (px per frame) of `reported`.
-fn last_motion(reported: &VecDeque<(u64, [f64; 2])>) -> Option<(u64, [f64; 2], [f64; 2])> {
-    let &(f1, c1) = reported.back()?;
-    let &(f0, c0) = reported.front()?;
+/// What `recall_ids` keeps of a target: its last reported frame (fitted or held), and its
+/// last fitted frame, box centre and velocity (px per frame) over the fitted boxes of
+/// `reported`.
+fn last_motion(tg: &Target) -> Option<Ended> {
+    let last = tg.last_shown?;
+    let &(f1, c1) = tg.reported.back()?;
+    let &(f0, c0) = tg.reported.front()?;
     let v = if f1 > f0 {
         let dt = (f1 - f0) as f64;
         [(c1[0] - c0[0]) / dt, (c1[1] - c0[1]) / dt]
     } else {
         [0.0; 2]
     };
-    Some((f1, c1, v))
+    Some(Ended {
+        id: tg.report_id,
+        last,
+        at: f1,
+        centre: c1,
+        velocity: v,
+    })
 }
 
 impl Target {
@@ -167,6 +189,9 @@ impl Target {
             pair_first: [[0.0; 2]; 2],
             report_id: id,
             reported: VecDeque::new(),
+            last_shown: None,
+            frozen: false,
+            held: false,
         }
     }
 }
@@ -1201,18 +1226,21 @@ impl WatershedSiftTracker {
             let tg = &mut self.targets[k];
             tg.occluded = occluded[k];
             tg.regions = keep;
+            tg.frozen = true;
             if tg.regions.is_empty() {
                 tg.lost += 1;
             } else {
                 tg.lost = 0;
                 if let Some(c) = located[k] {
                     tg.centre = c;
+                    tg.frozen = false;
                 } else if !(tg.occluded
                     && tg
                         .regions
                         .iter()
                         .all(|r| r.provenance == Provenance::Occlusion))
                 {
+                    tg.frozen = false;
                     let n = tg.regions.len() as f64;
                     tg.centre = [
                         tg.regions
@@ -1285,14 +1313,9 @@ impl WatershedSiftTracker {
             let end = exit || stuck || lost;
             if end
                 && cfg.recall_ids
-                && let Some((last, centre, velocity)) = last_motion(&tg.reported)
+                && let Some(e) = last_motion(tg)
             {
-                ended.push(Ended {
-                    id: tg.report_id,
-                    last,
-                    centre,
-                    velocity,
-                });
+                ended.push(e);
             }
             !end
         });
@@ -1323,9 +1346,12 @@ impl WatershedSiftTracker {
             let Some(bbox) = tg.report.filter(|_| shown(tg)) else {
                 continue;
             };
-            tg.reported.push_back((t, [bbox.cx, bbox.cy]));
-            while tg.reported.len() > RECALL_VELOCITY_FRAMES + 1 {
-                tg.reported.pop_front();
+            tg.last_shown = Some(t);
+            if !tg.held {
+                tg.reported.push_back((t, [bbox.cx, bbox.cy]));
+                while tg.reported.len() > RECALL_VELOCITY_FRAMES + 1 {
+                    tg.reported.pop_front();
+                }
             }
             let mut r = TrackReport::new(
                 stamp,
@@ -1669,6 +1695,7 @@ impl WatershedSiftTracker {
         for ((tg, fit), hide) in self.targets.iter_mut().zip(fits).zip(hidden) {
             if tg.regions.is_empty() || hide {
                 tg.report = None;
+                tg.held = false;
                 continue;
             }
             let visible = !tg.occluded;
@@ -1680,6 +1707,8 @@ impl WatershedSiftTracker {
             if fit.is_some() {
                 tg.fit = fit;
             }
+            // nothing placed the target this frame: its box is the last one again
+            tg.held = tg.frozen && !(fg_box && fit.is_some());
             tg.report = if fg_gate && visible && fit.is_none() {
                 None
             } else if let (true, Some(f)) = (fg_box, tg.fit) {
@@ -2175,28 +2204,22 @@ impl WatershedSiftTracker {
             if show[k] || self.targets.iter().any(|o| o.host == Some(tg.id)) {
                 continue;
             }
-            if let Some((last, centre, velocity)) = last_motion(&tg.reported)
-                && t.saturating_sub(last) <= window
+            if let Some(e) = last_motion(tg)
+                && t.saturating_sub(e.last) <= window
             {
-                let e = Ended {
-                    id: tg.report_id,
-                    last,
-                    centre,
-                    velocity,
-                };
                 lost.push((Source::Live(k), e));
             }
         }
         let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
         for (k, tg) in self.targets.iter().enumerate() {
-            let Some(b) = tg.report.filter(|_| show[k] && tg.reported.is_empty()) else {
+            let Some(b) = tg.report.filter(|_| show[k] && tg.last_shown.is_none()) else {
                 continue;
             };
             for (i, (_, e)) in lost.iter().enumerate() {
                 if e.last >= t {
                     continue;
                 }
-                let dt = (t - e.last) as f64;
+                let dt = (t - e.at) as f64;
                 let (c, v) = (e.centre, e.velocity);
                 let d = (b.cx - (c[0] + v[0] * dt)).hypot(b.cy - (c[1] + v[1] * dt));
                 if d <= self.cfg.box_w {
@@ -2361,6 +2384,7 @@ mod tests {
                 tg.reported.pop_front();
             }
         }
+        tg.last_shown = Some(to);
         tg
     }
 
@@ -2408,6 +2432,40 @@ mod tests {
         assert_eq!(ids, vec![(2, 1), (3, 3)]);
     }
 
+    /// A target held at its last fit (occluded, its foreground not found) keeps walking in
+    /// the recall: its motion is measured on its fitted boxes and predicted from the last of
+    /// them, and the window counts from its last held report.
+    #[test]
+    fn a_held_box_is_not_motion() {
+        let mut tr = tracker();
+        // fitted in frames 10-14 walking left at 3 px/frame (x 130 -> 118), then held at
+        // x = 118 in frames 15-20 (occluded); a newborn at frame 26, 10 frames later still
+        let mut a = lost_target(&tr, 1, 10, 14, [130.0, 200.0], [-3.0, 0.0]);
+        a.last_shown = Some(20);
+        // where it was going: 118 - 3 * 12 = 82
+        let b = newborn(&tr, 2, 26, [84.0, 200.0]);
+        let ids = recall_on(&mut tr, vec![a.clone(), b.clone()], &[false, true], 26);
+        assert_eq!(ids, vec![(2, 1)]);
+        // the same target with its held boxes taken as motion (reported in 10-20, standing
+        // from 15) would be predicted at rest near x = 118, 34 px from the newborn
+        let mut still = a;
+        for f in 15..=20 {
+            still.reported.push_back((f, [118.0, 200.0]));
+            while still.reported.len() > RECALL_VELOCITY_FRAMES + 1 {
+                still.reported.pop_front();
+            }
+        }
+        let ids = recall_on(&mut tr, vec![still, b], &[false, true], 26);
+        assert_eq!(ids, vec![(1, 1), (2, 2)]);
+        // 11 frames after the last held report: outside the window
+        let mut tr = tracker();
+        let mut a = lost_target(&tr, 1, 10, 14, [130.0, 200.0], [-3.0, 0.0]);
+        a.last_shown = Some(20);
+        let b = newborn(&tr, 2, 31, [118.0 - 3.0 * 17.0, 200.0]);
+        let ids = recall_on(&mut tr, vec![a, b], &[false, true], 31);
+        assert_eq!(ids, vec![(1, 1), (2, 2)]);
+    }
+
     /// The gate is one box width around the predicted place (at rest: the last place), the
     /// window `lost_frames` frames after the last report.
     #[test]
@@ -2445,6 +2503,7 @@ mod tests {
         tr.ended.push(Ended {
             id: TrackId(7),
             last: 14,
+            at: 14,
             centre: [100.0, 200.0],
             velocity: [2.0, 0.0],
         });
@@ -2458,6 +2517,7 @@ mod tests {
         let mut companion = newborn(&tr, 2, 12, [140.0, 200.0]);
         companion.host = Some(TrackId(1));
         companion.reported.push_back((14, [140.0, 200.0]));
+        companion.last_shown = Some(14);
         let b = newborn(&tr, 3, 16, [101.0, 200.0]);
         let ids = recall_on(&mut tr, vec![host, companion, b], &[false, true, true], 16);
         assert_eq!(ids, vec![(1, 1), (2, 2), (3, 3)]);
