@@ -203,6 +203,7 @@ mod tests {
     }
 
     /// FNV-1a digest of a label image (pins the exact labels across implementations).
+    #[cfg(feature = "io")]
     fn label_digest(labels: &[u32]) -> u64 {
         labels.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &l| {
             l.to_le_bytes()
