@@ -640,3 +640,59 @@ fn robust_pair_passed_behind_keeps_its_ids() {
     eprintln!("third walker: frames 20-39 {seen:?}, 80-99 {again:?}");
     assert!(again.0 >= 16 && again.1 == seen.1, "{seen:?} {again:?}");
 }
+
+/// A walker passing in front of a person who stands, at the same height: the structure of
+/// PETS09-S2L1's sign at frames 104-113 (docs/video-tracker.md, "Missing"). Person A walks in
+/// and stands from frame 35; walker B enters at frame 40 and passes in front of A around frame
+/// 95. σ = 8 blurs the two into one basin during the pass, as σ = 8.53 does for PETS's people.
+/// Wanted: A stays boxed under the id it had before the pass, and B keeps its id. `robust`
+/// fails the first (stop 38: A under its id in 0 of frames 100-159, B in 30 of 100-129): at
+/// the pass the two ids swap for two frames, A's target ends, A is boxed again under a new id
+/// for some frames and then not at all (a person standing without a target is absorbed into
+/// the median background). Kept as the test bed for the sign case; run with
+/// `cargo test -p quarry-trackers --test watershed_sift -- --ignored`.
+#[test]
+#[ignore = "known failure of `robust`: the sign case of docs/video-tracker.md, Missing"]
+fn robust_walker_passing_a_standing_person_keeps_both_ids() {
+    let a = Walker {
+        start: [40.0, 60.0],
+        vel: [2.0, 0.0],
+        t0: 0,
+        mean: 70.0,
+    };
+    let b = Walker {
+        start: [236.0, 60.0],
+        vel: [-2.5, 0.0],
+        t0: 40,
+        mean: 60.0,
+    };
+    let walkers = [a, b];
+    let pos = |i: usize, t: u64| -> Option<[f64; 2]> {
+        if i == 0 {
+            Some([(40.0 + 2.0 * t as f64).min(110.0), 60.0])
+        } else {
+            centre(&walkers[1], t).filter(|c| c[0] > -20.0)
+        }
+    };
+    let frames = video_with(&walkers, 170, 5, pos);
+    let mut cfg = config(true);
+    cfg.sigma = 8.0;
+    let out = run(cfg, &frames);
+    let id_of = |i: usize, t: u64| {
+        pos(i, t)
+            .and_then(|c| near(&out[t as usize], c, 8.0))
+            .map(|r| r.id)
+    };
+    let (a_id, b_id) = (id_of(0, 70), id_of(1, 70));
+    assert!(
+        a_id.is_some() && b_id.is_some() && a_id != b_id,
+        "before the pass"
+    );
+    let a_kept = (100..160).filter(|&t| id_of(0, t) == a_id).count();
+    let b_kept = (100..130).filter(|&t| id_of(1, t) == b_id).count();
+    eprintln!("A boxed under its id in {a_kept} of 60 frames, B in {b_kept} of 30");
+    assert!(
+        a_kept >= 54 && b_kept >= 27,
+        "A {a_kept} of 60, B {b_kept} of 30"
+    );
+}
