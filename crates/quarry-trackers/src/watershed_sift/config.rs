@@ -263,9 +263,9 @@ pub struct WatershedSiftConfig {
     /// is no observation and is left out of "its last boxes": the target was occluded, held
     /// only the occlusion's regions, its pool located it nowhere (§2.14, so its centre stayed
     /// put) and no box was fitted to its foreground; the place and velocity are then those of
-    /// its last observed boxes, and the window still counts from its last report (stop 38:
-    /// a walker hidden behind a pair for 14 frames was predicted standing where it was hidden). A live lost target whose id is taken ends (its
-    /// person is the new target's). On PETS09-S2L1 a person whose target loses its regions
+    /// its last observed boxes, and the window still counts from its last report (stop 38: a
+    /// walker hidden behind a pair for 14 frames was predicted standing where it was hidden).
+    /// A live lost target whose id is taken ends (its person is the new target's). On PETS09-S2L1 a person whose target loses its regions
     /// or its foreground for a few frames (a crossing, a group) comes back as a new target a
     /// few frames later, a few pixels from where they were going: a new id each time. The
     /// peers' ByteTrack keeps lost tracks for re-association the same way (for 1 s); here the

@@ -103,9 +103,9 @@ pub struct Target {
     /// The id this target is reported under: its own [`id`](Self::id), or with `recall_ids`
     /// the id of a lost target whose person it was found on (docs of `recall_ids`).
     pub report_id: TrackId,
-    /// The last frames this target was reported in with a box fitted to that frame's
-    /// foreground: (frame, box centre), at most [`RECALL_VELOCITY_FRAMES`] + 1 of them
-    /// (`recall_ids`). A box held from an earlier fit is not among them (see `held`).
+    /// The last frames this target was reported in with a box that observed it: (frame, box
+    /// centre), at most [`RECALL_VELOCITY_FRAMES`] + 1 of them (`recall_ids`). A box that only
+    /// repeats the last one is not among them (see `held`).
     reported: VecDeque<(u64, [f64; 2])>,
     /// The last frame this target was reported in, fitted or held (`recall_ids`).
     last_shown: Option<u64>,
@@ -2432,9 +2432,9 @@ mod tests {
         assert_eq!(ids, vec![(2, 1), (3, 3)]);
     }
 
-    /// A target held at its last fit (occluded, its foreground not found) keeps walking in
-    /// the recall: its motion is measured on its fitted boxes and predicted from the last of
-    /// them, and the window counts from its last held report.
+    /// A target whose box was held (occluded, located nowhere, no fit: the same box again)
+    /// keeps walking in the recall: its motion is measured on its observed boxes and predicted
+    /// from the last of them, and the window counts from its last held report.
     #[test]
     fn a_held_box_is_not_motion() {
         let mut tr = tracker();
