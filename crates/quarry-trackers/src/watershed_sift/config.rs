@@ -273,6 +273,18 @@ pub struct WatershedSiftConfig {
     /// alive, and the gate one box width: no new number. Only the reported ids change; the
     /// targets' own `id`s, their pools and all tracking steps are as without it.
     pub recall_ids: bool,
+    /// A target that lost its regions takes one back \[ext, ours; `robust`: true\]: a target
+    /// without regions (not occluded) claims the region under its centre O_c when that region
+    /// holds foreground (at least `fg_min_frac`/4 · w·h pixels, with the background model)
+    /// and has no moving point this frame. The claim comes last in step 7's priority, so a
+    /// region any other target claims stays that target's, and the target takes its region
+    /// back once the other target has moved off it. With it the stuck rule (§2.16) leaves a
+    /// target without regions to the lost rule (`lost_frames`): it is lost, not frozen on
+    /// background. Without it a target whose regions another target took (a walker passing in
+    /// front of a person standing still) has no way back: it ends and its person, standing,
+    /// makes no moving point for a new target (docs/video-tracker.md, "People standing"). A
+    /// moving region is left to step 6 and `recall_ids`, which check the motion.
+    pub reacquire: bool,
     /// Background regions take no part in steps 4 and 6 \[ext, ours; `robust`: true\]: a
     /// region holding fewer than `fg_min_frac`/4 · w·h foreground pixels is not a candidate
     /// fragment for the SIFT ownership test (step 4) and its moving point neither joins nor
@@ -405,6 +417,7 @@ impl WatershedSiftConfig {
             births_wait_for_occluded: false,
             occluded_hold_located: false,
             recall_ids: false,
+            reacquire: false,
             fg_skip_background: false,
             fg_pairs: false,
             fg_pairs_hold: false,
@@ -432,6 +445,7 @@ impl WatershedSiftConfig {
             births_wait_for_occluded: true,
             occluded_hold_located: true,
             recall_ids: true,
+            reacquire: true,
             fg_skip_background: true,
             fg_pairs: true,
             fg_pairs_hold: true,

@@ -34,6 +34,9 @@ pub enum Provenance {
     Occlusion,
     /// A region assigned at separation (§2.15).
     Separation,
+    /// The region under the centre of a target that had lost its regions (`reacquire`, an
+    /// extension); the last in step 7's priority.
+    Reacquired,
 }
 
 impl Provenance {
@@ -46,6 +49,7 @@ impl Provenance {
             Self::SplitSift => 3,
             Self::Distance => 4,
             Self::MovingPoint => 5,
+            Self::Reacquired => 6,
         }
     }
 }
@@ -993,6 +997,29 @@ impl WatershedSiftTracker {
                 }
                 continue;
             }
+            // [ext] reacquire: a target without regions (not a companion) claims the region
+            // under its centre if it holds foreground, has no moving point and passes step
+            // 4's ownership test against the target's pool
+            if self.cfg.reacquire
+                && s.is_empty()
+                && self.targets[k].host.is_none()
+                && fg_regions.is_some()
+            {
+                let l = lab(pixel(self.targets[k].centre, w, h));
+                if !background_region(l) && !moving.iter().any(|m| m.0 == l) {
+                    // the region must be the target's person: step 4's ownership test
+                    let (_, d) = Self::features(&mut cache, &seg, &geo, &[l], None)?;
+                    let tg = &self.targets[k];
+                    if d.len() >= self.cfg.n_min
+                        && tg
+                            .pool
+                            .ownership_ratio(&d, &tg.prev_desc)
+                            .is_some_and(|r| r > self.cfg.tau_split)
+                    {
+                        push(&mut claims[k], l, Provenance::Reacquired);
+                    }
+                }
+            }
             // steps 1 and 3: primary successors
             for r in s {
                 if let Some((j, kind)) = map.successor(r.label) {
@@ -1307,8 +1334,11 @@ impl WatershedSiftTracker {
             let exit = in_band && d_k(cfg.exit_frames).is_some_and(|d| d < cfg.still_px);
             // with the foreground gate, a target on foreground is a person standing, not
             // regions frozen on background: the gate ends the latter (`stuck_needs_no_fg`)
+            // with `reacquire`, a target without regions is lost, not stuck on background: the
+            // lost rule ends it
             let stuck = d_k(cfg.stuck_frames).is_some_and(|d| d < cfg.still_px)
-                && !(cfg.stuck_needs_no_fg && tg.moved && tg.no_fg == 0 && tg.report.is_some());
+                && !(cfg.stuck_needs_no_fg && tg.moved && tg.no_fg == 0 && tg.report.is_some())
+                && !(cfg.reacquire && tg.regions.is_empty() && tg.host.is_none());
             let lost = tg.lost > cfg.lost_frames || tg.no_fg > cfg.lost_frames;
             let end = exit || stuck || lost;
             if end
