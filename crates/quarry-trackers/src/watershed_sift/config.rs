@@ -274,16 +274,20 @@ pub struct WatershedSiftConfig {
     /// targets' own `id`s, their pools and all tracking steps are as without it.
     pub recall_ids: bool,
     /// A target that lost its regions takes one back \[ext, ours; `robust`: true\]: a target
-    /// without regions (not occluded) claims the region under its centre O_c when that region
-    /// holds foreground (at least `fg_min_frac`/4 · w·h pixels, with the background model)
-    /// and has no moving point this frame. The claim comes last in step 7's priority, so a
-    /// region any other target claims stays that target's, and the target takes its region
-    /// back once the other target has moved off it. With it the stuck rule (§2.16) leaves a
-    /// target without regions to the lost rule (`lost_frames`): it is lost, not frozen on
-    /// background. Without it a target whose regions another target took (a walker passing in
-    /// front of a person standing still) has no way back: it ends and its person, standing,
-    /// makes no moving point for a new target (docs/video-tracker.md, "People standing"). A
-    /// moving region is left to step 6 and `recall_ids`, which check the motion.
+    /// without regions (not occluded, not a companion) claims the region under its centre O_c
+    /// when that region holds foreground (at least `fg_min_frac`/4 · w·h pixels, with the
+    /// background model), has no moving point this frame, no other target continues into it
+    /// (as a primary successor), and it passes step 4's SIFT ownership test against the
+    /// target's pool (ratio > `tau_split`: the region is the target's person). The claim comes
+    /// last in step 7's priority, so a region any other target claims stays that target's,
+    /// and the target takes its region back once the other target has moved off it. With it
+    /// the stuck rule (§2.16) leaves a target without regions to the lost rule
+    /// (`lost_frames`): it is lost, not frozen on background. Without it a target whose
+    /// regions another target took (a walker passing in front of a person standing still) has
+    /// no way back: it ends, and its person, standing, makes no moving point for a new target
+    /// (docs/video-tracker.md, stop 39). A moving region is left to step 6 and `recall_ids`,
+    /// which check the motion. No new number: the foreground count, the ownership test, the
+    /// priority and the lost window are the tracker's own.
     pub reacquire: bool,
     /// Background regions take no part in steps 4 and 6 \[ext, ours; `robust`: true\]: a
     /// region holding fewer than `fg_min_frac`/4 · w·h foreground pixels is not a candidate

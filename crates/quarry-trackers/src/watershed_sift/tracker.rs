@@ -1006,7 +1006,13 @@ impl WatershedSiftTracker {
                 && fg_regions.is_some()
             {
                 let l = lab(pixel(self.targets[k].centre, w, h));
-                if !background_region(l) && !moving.iter().any(|m| m.0 == l) {
+                // a region another target continues into is that target's (the claim would
+                // come last in step 7); its SIFT is not asked for
+                let continued = provisional
+                    .iter()
+                    .enumerate()
+                    .any(|(o, pr)| o != k && pr.contains(&l));
+                if !continued && !background_region(l) && !moving.iter().any(|m| m.0 == l) {
                     // the region must be the target's person: step 4's ownership test
                     let (_, d) = Self::features(&mut cache, &seg, &geo, &[l], None)?;
                     let tg = &self.targets[k];
