@@ -645,14 +645,14 @@ fn robust_pair_passed_behind_keeps_its_ids() {
 /// PETS09-S2L1's sign at frames 104-113 (docs/video-tracker.md, "Missing"). Person A walks in
 /// and stands from frame 35; walker B enters at frame 40 and passes in front of A around frame
 /// 95. σ = 8 blurs the two into one basin during the pass, as σ = 8.53 does for PETS's people.
-/// Wanted: A is boxed under the id it had before the pass once B has passed, and B keeps its
-/// id. B's target takes A's region at frame 98; with `reacquire` A's target, now without
-/// regions, waits and takes the region back once B has moved off it (A is boxed under its id
-/// again in every frame from 106; B keeps its id throughout). Without it (stop 38) A's target ends at
-/// 98, A is boxed again under a new id for some frames and then not at all (a person
-/// standing without a target that moved is absorbed into the median background): 0 of 60.
-/// Still wrong with it: in frames 96-97 the two ids swap (the occlusion group's pair split
-/// compares the parts with last boxes that both lie at A, docs/video-tracker.md).
+/// Wanted: A is boxed under the id it had before the pass once B has passed, and B keeps its id.
+/// B's target takes A's region at frame 98; with `reacquire` A's target, now without regions, waits
+/// and takes the region back once B has moved off it (A is boxed under its id again in every frame
+/// from 106; B keeps its id throughout). Without it (stop 38) A's target ends at 98, A is boxed
+/// again under a new id for some frames and then not at all (a person standing without a target
+/// that moved is absorbed into the median background): 0 of 54. Still wrong with it: in frames
+/// 96-97 the two ids swap (the occlusion group's pair split compares the parts with last boxes that
+/// both lie at A, docs/video-tracker.md).
 #[test]
 fn robust_walker_passing_a_standing_person_keeps_both_ids() {
     let a = Walker {

@@ -265,13 +265,13 @@ pub struct WatershedSiftConfig {
     /// put) and no box was fitted to its foreground; the place and velocity are then those of
     /// its last observed boxes, and the window still counts from its last report (stop 38: a
     /// walker hidden behind a pair for 14 frames was predicted standing where it was hidden).
-    /// A live lost target whose id is taken ends (its person is the new target's). On PETS09-S2L1 a person whose target loses its regions
-    /// or its foreground for a few frames (a crossing, a group) comes back as a new target a
-    /// few frames later, a few pixels from where they were going: a new id each time. The
-    /// peers' ByteTrack keeps lost tracks for re-association the same way (for 1 s); here the
-    /// window is `lost_frames`, the time the paper already keeps a target without regions
-    /// alive, and the gate one box width: no new number. Only the reported ids change; the
-    /// targets' own `id`s, their pools and all tracking steps are as without it.
+    /// A live lost target whose id is taken ends (its person is the new target's). On PETS09-S2L1 a
+    /// person whose target loses its regions or its foreground for a few frames (a crossing, a
+    /// group) comes back as a new target a few frames later, a few pixels from where they were
+    /// going: a new id each time. The peers' ByteTrack keeps lost tracks for re-association the
+    /// same way (for 1 s); here the window is `lost_frames`, the time the paper already keeps a
+    /// target without regions alive, and the gate one box width: no new number. Only the reported
+    /// ids change; the targets' own `id`s, their pools and all tracking steps are as without it.
     pub recall_ids: bool,
     /// A target that lost its regions takes one back \[ext, ours; `robust`: true\]: a target
     /// without regions (not occluded, not a companion) claims the region under its centre O_c
